@@ -1,0 +1,47 @@
+# signorini: set-up, demo, tests and batch studies. `make demo` and `make test` set everything up first.
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+SIGNORINI := $(VENV)/bin/signorini
+STAMP := $(VENV)/.setup-done
+APT_PACKAGES := python3-dolfinx-real python3-gmsh python3-h5py python3-yaml python3-matplotlib \
+                python3-pytest python3-pytest-mpi python3-sympy python3-venv openmpi-bin
+NP ?= 2
+# Open MPI refuses to run as root without these; harmless for other users.
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+export OMPI_MCA_rmaps_base_oversubscribe := 1
+MPIRUN := mpirun -n $(NP)
+CONFIG ?= configs/demo.yaml
+CONFIGS := $(shell find configs -name '*.yaml' | sort)
+
+.PHONY: setup demo test test-serial test-mpi run studies clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml
+	@bash .ci/install-system-packages $(APT_PACKAGES)
+	/usr/bin/python3 -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install --quiet --no-build-isolation -e .
+	@touch $@
+
+demo: setup
+	$(SIGNORINI) run configs/demo.yaml --force
+
+test: setup test-serial test-mpi
+
+test-serial: setup
+	$(PY) -m pytest -m "not mpi" -q
+
+test-mpi: setup
+	$(MPIRUN) $(PY) -m pytest --with-mpi -m mpi -q -p no:cacheprovider
+
+run: setup
+	$(SIGNORINI) run $(CONFIG) --force
+
+studies: setup
+	@set -e; for c in $(CONFIGS); do echo "== $$c"; $(SIGNORINI) run $$c --force || test $$? -eq 1; done
+
+clean:
+	rm -rf results build *.egg-info .pytest_cache
+	find . -name __pycache__ -prune -exec rm -rf {} +

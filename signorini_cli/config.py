@@ -1,0 +1,298 @@
+"""Study configuration: YAML -> validated, frozen dataclasses. Every error names its key path."""
+import dataclasses
+import difflib
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from . import expressions
+
+LAWS = ("theta_h", "theta_sqrt_h", "constant", "power")
+MESH_KINDS = {"unit_square": 2, "unit_cube": 3}
+FACES = {2: ("left", "right", "bottom", "top"),
+         3: ("left", "right", "front", "back", "bottom", "top")}
+DIAGONALS = ("right", "left", "crossed")
+POSITIVE_PARTS = ("exact", "smooth")
+LINEAR_SOLVERS = ("auto", "direct", "iterative")  # auto: direct in 2-D, iterative in 3-D
+LINE_SEARCHES = ("bt", "basic", "l2", "cp")
+ON_FAILURE = ("continue", "stop")
+MAX_ALPHA_3D = 3.0  # the paper's condition (5): 1 <= alpha <= 3 when d = 3
+COORDINATES = {2: ("x", "y"), 3: ("x", "y", "z")}
+
+
+class ConfigError(ValueError):
+    """A bad config value; str() starts with the key path."""
+
+    def __init__(self, path, message):
+        self.path, self.message = path, message
+        super().__init__(f"{path}: {message}" if path else message)
+
+
+@dataclass(frozen=True)
+class Epsilon:
+    """The penalty law eps(h) (SPEC: theta_h, theta_sqrt_h, constant, power)."""
+    law: str = "theta_h"
+    theta: float = 1.0
+    exponent: float = 1.0  # only for law: power
+
+    def __call__(self, h):
+        power = {"theta_h": 1.0, "theta_sqrt_h": 0.5, "constant": 0.0, "power": self.exponent}
+        return self.theta * h ** power[self.law]
+
+
+@dataclass(frozen=True)
+class Mesh:
+    kind: str = "unit_square"
+    refinements: tuple = (8, 16, 32, 64)
+    diagonal: str = "right"
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A manufactured solution `exact`, or data `f` (and `g`) only."""
+    exact: expressions.Expression = None
+    f: expressions.Expression = None
+    g: expressions.Expression = None
+
+
+@dataclass(frozen=True)
+class PositivePart:
+    """[u]_+ exactly, or smoothed as (u + sqrt(u^2 + delta^2))/2 with delta an expression in h."""
+    kind: str = "exact"
+    delta: expressions.Expression = None
+
+
+@dataclass(frozen=True)
+class Solver:
+    rtol: float = 1e-10
+    atol: float = 1e-12
+    max_it: int = 50
+    linear: str = "auto"
+    line_search: str = "bt"
+    on_failure: str = "continue"
+    petsc_options: tuple = ()  # (name, value) pairs passed to PETSc under the study's prefix
+
+
+@dataclass(frozen=True)
+class Output:
+    dir: str = "results"
+
+
+@dataclass(frozen=True)
+class Config:
+    study: str
+    dimension: int
+    alpha: float
+    epsilon: Epsilon
+    mesh: Mesh
+    contact: str
+    problem: Problem
+    positive_part: PositivePart = PositivePart()
+    solver: Solver = Solver()
+    output: Output = Output()
+    description: str = ""
+    text: str = field(default="", repr=False, compare=False)  # the YAML as given, for the record
+
+    @property
+    def output_dir(self):
+        return Path(self.output.dir) / self.study
+
+
+# --- loading -----------------------------------------------------------------------------------
+
+def load(path, overrides=()):
+    """Read a YAML config file, apply `KEY=VALUE` overrides, validate."""
+    text = Path(path).read_text()
+    return loads(text, overrides)
+
+
+def loads(text, overrides=()):
+    """Validate YAML text (after overrides) into a Config."""
+    raw = yaml.safe_load(text)
+    if not isinstance(raw, dict):
+        raise ConfigError("", "the config must be a YAML mapping of keys to values")
+    for item in overrides:
+        apply_override(raw, item)
+    return dataclasses.replace(from_dict(raw), text=text)
+
+
+def apply_override(raw, item):
+    """Set `a.b.c=value` in the raw mapping; the value is parsed as YAML, then validated as usual."""
+    key, sep, value = item.partition("=")
+    if not sep or not key.strip():
+        raise ConfigError("--set", f"expected KEY=VALUE, got {item!r}")
+    parts = key.strip().split(".")
+    node = raw
+    for i, part in enumerate(parts[:-1]):
+        child = node.get(part)
+        if child is None or not isinstance(child, dict):
+            if child is not None and not isinstance(child, dict):
+                raise ConfigError(".".join(parts[:i + 1]), "is not a mapping, cannot set a sub-key")
+            child = node[part] = {}
+        node = child
+    node[parts[-1]] = yaml.safe_load(value)
+
+
+def from_dict(raw):
+    """Validate a raw mapping into a Config."""
+    _keys(raw, "", required=("study", "mesh", "contact"),
+          optional=("dimension", "alpha", "epsilon", "problem", "positive_part", "solver",
+                    "output", "description"))
+    study = _string(raw["study"], "study")
+    if "/" in study or study in (".", ".."):
+        raise ConfigError("study", f"must be a plain folder name, got {study!r}")
+    mesh = _mesh(raw["mesh"], "mesh")
+    dim = _integer(raw.get("dimension", MESH_KINDS[mesh.kind]), "dimension")
+    if dim not in (2, 3):
+        raise ConfigError("dimension", f"must be 2 or 3, got {dim}")
+    if MESH_KINDS[mesh.kind] != dim:
+        raise ConfigError("mesh.kind", f"{mesh.kind} is {MESH_KINDS[mesh.kind]}-D but dimension is {dim}")
+    alpha = _number(raw.get("alpha", 2.0), "alpha", low=1.0)
+    if dim == 3 and alpha > MAX_ALPHA_3D:
+        raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g}")
+    return Config(study=study, dimension=dim, alpha=alpha,
+                  epsilon=_epsilon(raw.get("epsilon", {}), "epsilon"),
+                  mesh=mesh, contact=_choice(raw["contact"], "contact", FACES[dim]),
+                  problem=_problem(raw.get("problem"), "problem", dim),
+                  positive_part=_positive_part(raw.get("positive_part", "exact"), "positive_part"),
+                  solver=_solver(raw.get("solver", {}), "solver"),
+                  output=_output(raw.get("output", {}), "output"),
+                  description=_string(raw.get("description", ""), "description", empty=True))
+
+
+def _epsilon(raw, path):
+    _keys(raw, path, optional=("law", "theta", "exponent"))
+    law = _choice(raw.get("law", "theta_h"), f"{path}.law", LAWS)
+    if "exponent" in raw and law != "power":
+        raise ConfigError(f"{path}.exponent", f"only meaningful with law: power, not {law}")
+    exponent = _number(raw.get("exponent", 1.0), f"{path}.exponent")
+    return Epsilon(law, _number(raw.get("theta", 1.0), f"{path}.theta", positive=True), exponent)
+
+
+def _mesh(raw, path):
+    _keys(raw, path, required=("kind", "refinements"), optional=("diagonal",))
+    kind = _choice(raw["kind"], f"{path}.kind", tuple(MESH_KINDS))
+    levels = raw["refinements"]
+    if not isinstance(levels, list) or not levels:
+        raise ConfigError(f"{path}.refinements", f"must be a non-empty list of cells per side, got {levels!r}")
+    levels = tuple(_integer(n, f"{path}.refinements[{i}]", low=1) for i, n in enumerate(levels))
+    for i in range(1, len(levels)):
+        if levels[i] <= levels[i - 1]:
+            raise ConfigError(f"{path}.refinements", f"must increase, got {list(levels)}")
+    diagonal = _choice(raw.get("diagonal", "right"), f"{path}.diagonal", DIAGONALS)
+    return Mesh(kind, levels, diagonal)
+
+
+def _problem(raw, path, dim):
+    if raw is None:
+        raise ConfigError(path, "missing: give problem.exact (manufactured) or problem.f")
+    _keys(raw, path, optional=("exact", "f", "g"))
+    coords = COORDINATES[dim]
+    exact, f, g = (_expression(raw[k], f"{path}.{k}", coords + ("eps",)) if k in raw else None
+                   for k in ("exact", "f", "g"))
+    if exact is None and f is None:
+        raise ConfigError(path, "give exact (a manufactured solution) or f (data only)")
+    if exact is not None and (f is not None or g is not None):
+        raise ConfigError(path, "exact determines f and g; give exact alone, or f (and g) alone")
+    return Problem(exact, f, g)
+
+
+def _positive_part(raw, path):
+    if isinstance(raw, str):
+        raw = {"kind": raw}
+    _keys(raw, path, optional=("kind", "delta"))
+    kind = _choice(raw.get("kind", "exact"), f"{path}.kind", POSITIVE_PARTS)
+    if kind == "exact":
+        if "delta" in raw:
+            raise ConfigError(f"{path}.delta", "only meaningful with kind: smooth")
+        return PositivePart()
+    delta = _expression(raw.get("delta", "1e-2*h**2"), f"{path}.delta", ("h", "eps"))
+    return PositivePart(kind, delta)
+
+
+def _solver(raw, path):
+    _keys(raw, path, optional=("rtol", "atol", "max_it", "linear", "line_search", "on_failure",
+                               "petsc_options"))
+    opts = raw.get("petsc_options", {}) or {}
+    if not isinstance(opts, dict):
+        raise ConfigError(f"{path}.petsc_options", "must be a mapping of PETSc option names to values")
+    return Solver(rtol=_number(raw.get("rtol", 1e-10), f"{path}.rtol", positive=True),
+                  atol=_number(raw.get("atol", 1e-12), f"{path}.atol", positive=True),
+                  max_it=_integer(raw.get("max_it", 50), f"{path}.max_it", low=1),
+                  linear=_choice(raw.get("linear", "auto"), f"{path}.linear", LINEAR_SOLVERS),
+                  line_search=_choice(raw.get("line_search", "bt"), f"{path}.line_search", LINE_SEARCHES),
+                  on_failure=_choice(raw.get("on_failure", "continue"), f"{path}.on_failure", ON_FAILURE),
+                  petsc_options=tuple((str(k).lstrip("-"), "" if v is None else str(v))
+                                      for k, v in opts.items()))
+
+
+def _output(raw, path):
+    _keys(raw, path, optional=("dir",))
+    return Output(dir=_string(raw.get("dir", "results"), f"{path}.dir"))
+
+
+# --- small validators ---------------------------------------------------------------------------
+
+def _keys(raw, path, required=(), optional=()):
+    """Check a mapping has the required keys and no unknown ones (with a did-you-mean)."""
+    where = path or "config"
+    if not isinstance(raw, dict):
+        raise ConfigError(path, f"must be a mapping, got {_show(raw)}")
+    for key in raw:
+        if key not in required and key not in optional:
+            close = difflib.get_close_matches(str(key), required + optional, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ConfigError(_join(path, key), f"unknown key in {where}{hint}")
+    for key in required:
+        if key not in raw:
+            raise ConfigError(_join(path, key), "missing required key")
+
+
+def _join(path, key):
+    return f"{path}.{key}" if path else str(key)
+
+
+def _show(value):
+    return f"{type(value).__name__} {value!r}" if not isinstance(value, (dict, list)) else type(value).__name__
+
+
+def _number(value, path, low=None, positive=False):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(path, f"must be a number, got {_show(value)}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ConfigError(path, f"must be finite, got {value}")
+    if positive and value <= 0:
+        raise ConfigError(path, f"must be > 0, got {value:g}")
+    if low is not None and value < low:
+        raise ConfigError(path, f"must be >= {low:g}, got {value:g}")
+    return value
+
+
+def _integer(value, path, low=None):
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(path, f"must be an integer, got {_show(value)}")
+    if low is not None and value < low:
+        raise ConfigError(path, f"must be >= {low}, got {value}")
+    return value
+
+
+def _string(value, path, empty=False):
+    if not isinstance(value, str) or (not empty and not value.strip()):
+        raise ConfigError(path, f"must be a non-empty string, got {_show(value)}")
+    return value
+
+
+def _choice(value, path, choices):
+    if value not in choices:
+        raise ConfigError(path, f"{value!r} is not one of {', '.join(choices)}")
+    return value
+
+
+def _expression(text, path, variables):
+    try:
+        return expressions.parse(text, variables)
+    except expressions.ExpressionError as err:
+        raise ConfigError(path, str(err)) from None

@@ -1,0 +1,59 @@
+"""Meshes of a refinement family, with Γ_C and Γ_D tagged, and their measured size h."""
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx.mesh
+from dolfinx import cpp
+
+CONTACT, DIRICHLET = 1, 2
+# face name -> (axis, coordinate) on the unit square / cube
+FACES = {"left": (0, 0.0), "right": (0, 1.0), "front": (1, 0.0), "back": (1, 1.0)}
+FACES_2D = dict(FACES, bottom=(1, 0.0), top=(1, 1.0))
+FACES_3D = dict(FACES, bottom=(2, 0.0), top=(2, 1.0))
+
+
+@dataclass(frozen=True)
+class Domain:
+    """One level's mesh with its facet tags (CONTACT on Γ_C, DIRICHLET on Γ_D) and size."""
+    mesh: dolfinx.mesh.Mesh
+    facet_tags: dolfinx.mesh.MeshTagsMetaClass
+    h: float
+    h_min: float
+    n: int
+
+
+def build(mesh_cfg, contact, n, comm=MPI.COMM_WORLD):
+    """The level with `n` cells per side, Γ_C = the face named `contact`."""
+    if mesh_cfg.kind == "unit_square":
+        diagonal = getattr(dolfinx.mesh.DiagonalType, mesh_cfg.diagonal)
+        msh = dolfinx.mesh.create_unit_square(comm, n, n, diagonal=diagonal)
+        faces = FACES_2D
+    else:
+        msh = dolfinx.mesh.create_unit_cube(comm, n, n, n)
+        faces = FACES_3D
+    tags = tag_boundary(msh, faces[contact])
+    h, h_min = cell_sizes(msh)
+    return Domain(msh, tags, h, h_min, n)
+
+
+def tag_boundary(msh, face):
+    """Tag the facets on the plane x[axis] = value as CONTACT and every other exterior facet DIRICHLET."""
+    axis, value = face
+    fdim = msh.topology.dim - 1
+    msh.topology.create_connectivity(fdim, msh.topology.dim)
+    boundary = dolfinx.mesh.exterior_facet_indices(msh.topology)
+    contact = dolfinx.mesh.locate_entities_boundary(msh, fdim, lambda x: np.isclose(x[axis], value))
+    values = np.where(np.isin(boundary, contact), CONTACT, DIRICHLET).astype(np.int32)
+    return dolfinx.mesh.meshtags(msh, fdim, boundary.astype(np.int32), values)
+
+
+def cell_sizes(msh):
+    """(largest, smallest) cell diameter over all ranks: the paper's h = max_K h_K."""
+    tdim = msh.topology.dim
+    cells = np.arange(msh.topology.index_map(tdim).size_local, dtype=np.int32)
+    diameters = cpp.mesh.h(msh._mesh, tdim, cells)  # 0.5.2 wraps the C++ mesh in ._mesh
+    local_max = diameters.max() if diameters.size else 0.0
+    local_min = diameters.min() if diameters.size else np.inf
+    return msh.comm.allreduce(local_max, op=MPI.MAX), msh.comm.allreduce(local_min, op=MPI.MIN)

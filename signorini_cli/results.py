@@ -1,0 +1,127 @@
+"""The study's record on disk: rates.csv and study.h5, rewritten atomically after every level."""
+import csv
+import io
+import os
+import platform
+import tempfile
+from pathlib import Path
+
+from mpi4py import MPI
+
+from . import rates
+
+SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
+                "L2", "rate_L2", "H1", "rate_H1", "time_s")
+EXTRA_COLUMNS = ("reason", "linear_its", "final_residual")
+NORMS = ("L2", "H1")
+
+
+def table(levels):
+    """Rows (dicts in column order) of the rate table; error columns only for norms measured."""
+    norms = [norm for norm in NORMS if any(norm in lv.errors for lv in levels)]
+    h = [lv.h for lv in levels]
+    ok = [lv.outcome.converged for lv in levels]
+    observed = {norm: rates.observed(h, [lv.errors.get(norm) for lv in levels], ok) for norm in norms}
+    rows = []
+    for k, lv in enumerate(levels):
+        row = {"level": lv.index, "N": lv.n, "h": lv.h, "dofs": lv.dofs, "epsilon": lv.eps,
+               "converged": lv.outcome.converged, "newton_its": lv.outcome.newton_its}
+        for norm in norms:
+            row[norm] = lv.errors.get(norm) if lv.outcome.converged else None
+            row[f"rate_{norm}"] = observed[norm][k]
+        row["time_s"] = lv.time_s
+        row.update(reason=lv.outcome.reason, linear_its=lv.outcome.linear_its,
+                   final_residual=lv.outcome.residuals[-1] if lv.outcome.residuals else None)
+        row.update(lv.extra)
+        rows.append(row)
+    return rows
+
+
+def write(cfg, levels, comm=MPI.COMM_WORLD):
+    """Write rates.csv and study.h5 for the levels so far (rank 0 writes, every rank waits)."""
+    rows = table(levels)
+    if comm.rank == 0:
+        folder = cfg.output_dir
+        folder.mkdir(parents=True, exist_ok=True)
+        _replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
+        _replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, comm.size))
+    comm.barrier()
+    return rows
+
+
+def csv_text(rows):
+    """The table as CSV: floats in full precision, empty cells for missing values."""
+    if not rows:
+        return ""
+    out = io.StringIO()
+    writer = csv.DictWriter(out, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: _cell(v) for k, v in row.items()})
+    return out.getvalue()
+
+
+def _cell(value):
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    return value
+
+
+def _replace(path, write_to):
+    """Write through a temporary file in the same folder, then rename: readers never see half a file."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        write_to(Path(tmp))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def versions():
+    """Versions of the package and of the numerical stack, for the record."""
+    import basix, dolfinx, ffcx, h5py, numpy, ufl
+    from petsc4py import PETSc
+    from . import __version__
+    return {"signorini": __version__, "dolfinx": dolfinx.__version__, "basix": basix.__version__,
+            "ffcx": ffcx.__version__, "ufl": ufl.__version__, "h5py": h5py.__version__,
+            "numpy": numpy.__version__, "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
+            "python": platform.python_version()}
+
+
+def _write_h5(path, cfg, levels, rows, mpi_size):
+    import h5py
+    import numpy as np
+    with h5py.File(path, "w") as h5:
+        h5.attrs["config"] = cfg.text
+        h5.attrs["study"] = cfg.study
+        h5.attrs["mpi_size"] = mpi_size
+        h5.attrs["levels_done"] = len(levels)
+        for name, version in versions().items():
+            h5.attrs[f"version_{name}"] = version
+        _write_table(h5.create_group("table"), rows)
+        for lv, row in zip(levels, rows):
+            _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row, np)
+
+
+def _write_table(group, rows):
+    for column in (rows[0] if rows else {}):
+        values = [row[column] for row in rows]
+        if all(isinstance(v, str) for v in values):
+            group.create_dataset(column, data=[v.encode() for v in values])
+        else:
+            group.create_dataset(column, data=[float("nan") if v is None else float(v) for v in values])
+
+
+def _write_level(group, lv, row, np):
+    for column, value in row.items():
+        if value is not None:
+            group.attrs[column] = value
+    group.create_dataset("residuals", data=np.array(lv.outcome.residuals, dtype=float))
+    for norm, value in lv.errors.items():  # raw errors, also of a level that did not converge
+        group.attrs[f"measured_{norm}"] = value

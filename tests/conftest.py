@@ -1,0 +1,45 @@
+"""Shared fixtures: a config factory for small studies."""
+import copy
+
+import pytest
+import yaml
+
+from signorini_cli import config
+
+BASE = {
+    "study": "t",
+    "dimension": 2,
+    "alpha": 2.0,
+    "epsilon": {"law": "theta_h", "theta": 1.0},
+    "mesh": {"kind": "unit_square", "refinements": [4, 8]},
+    "contact": "bottom",
+    "problem": {"exact": "sin(2*pi*x)*(1-y)**2"},
+}
+
+
+def merge(base, changes):
+    """A deep copy of `base` with nested `changes` applied (None deletes a key)."""
+    out = copy.deepcopy(base)
+    for key, value in changes.items():
+        if value is None:
+            out.pop(key, None)
+        elif isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+@pytest.fixture
+def raw_config():
+    """The raw mapping of a small valid 2-D study, to be varied per test."""
+    return copy.deepcopy(BASE)
+
+
+@pytest.fixture
+def make_config(tmp_path):
+    """make_config(**changes) -> a validated Config writing under tmp_path."""
+    def make(**changes):
+        raw = merge(BASE, {"output": {"dir": str(tmp_path / "results")}})
+        return config.loads(yaml.safe_dump(merge(raw, changes)))
+    return make

@@ -1,0 +1,36 @@
+"""rates.csv and study.h5: SPEC columns, written after every level, readable when cut short."""
+import csv
+
+import h5py
+import pytest
+
+from signorini_cli import results, study
+
+
+class Interrupt(Exception):
+    pass
+
+
+def test_half_finished_study_is_readable(make_config):
+    cfg = make_config(mesh={"refinements": [4, 8, 16]})
+
+    def write_then_stop(levels):
+        results.write(cfg, levels)
+        if len(levels) == 2:
+            raise Interrupt
+
+    with pytest.raises(Interrupt):
+        study.run_study(cfg, on_level=write_then_stop)
+    with open(cfg.output_dir / "rates.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [row["N"] for row in rows] == ["4", "8"]
+    assert list(rows[0])[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
+    assert rows[0]["rate_L2"] == "" and float(rows[1]["rate_L2"]) > 1
+    assert rows[1]["converged"] == "true"
+    with h5py.File(cfg.output_dir / "study.h5") as h5:
+        assert h5.attrs["levels_done"] == 2 and h5.attrs["mpi_size"] >= 1
+        assert "alpha: 2.0" in h5.attrs["config"] and h5.attrs["version_dolfinx"] == "0.5.2"
+        assert sorted(h5) == ["level_00", "level_01", "table"]
+        assert h5["table/L2"][1] == pytest.approx(float(rows[1]["L2"]), rel=1e-15)
+        assert h5["level_01"].attrs["N"] == 8 and len(h5["level_01/residuals"]) >= 2
+    assert not list(cfg.output_dir.glob(".*tmp"))  # atomic replace left no temporary files
