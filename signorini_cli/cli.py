@@ -1,5 +1,7 @@
-"""Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force]`."""
+"""Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force]`;
+check, list, report and compare."""
 import argparse
+import dataclasses
 import logging
 import sys
 
@@ -19,32 +21,77 @@ def build_parser():
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a config key, e.g. --set epsilon.theta=10 (repeatable)")
     run.add_argument("--force", action="store_true", help="overwrite existing results of this study")
+    noise = run.add_mutually_exclusive_group()
+    noise.add_argument("--quiet", action="store_true", help="print nothing but errors (results still written)")
+    noise.add_argument("--verbose", action="store_true", help="also PETSc's SNES and KSP monitors")
+    _add_report_commands(sub)
     return parser
+
+
+def _add_report_commands(sub):
+    check = sub.add_parser("check", help="validate a config and print its resolved settings, no solve")
+    check.add_argument("config", help="study config (YAML)")
+    check.add_argument("--output", help="results folder (overrides output.dir)")
+    check.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a config key, as for run (repeatable)")
+    listing = sub.add_parser("list", help="the shipped configs with their descriptions")
+    listing.add_argument("folder", nargs="?", help="a folder of configs (default: the shipped configs/)")
+    rep = sub.add_parser("report", help="tables and plots of a finished or partial study, no recomputation")
+    rep.add_argument("path", help="a study folder, its study.h5 or its rates.csv")
+    rep.add_argument("--digits", type=int, help="digits after the point in rates.md/rates.tex "
+                                                "(default: the study's output.digits, else 3)")
+    rep.add_argument("--no-plots", action="store_true", help="tables only (matplotlib not imported)")
+    rep.add_argument("--output", help="write into this folder instead of the study's")
+    compare = sub.add_parser("compare", help="overlay the curves of several studies")
+    compare.add_argument("paths", nargs="+", help="study folders (or their study.h5 / rates.csv)")
+    compare.add_argument("--label", action="append", metavar="NAME", help="a legend label per study, in order")
+    compare.add_argument("--output", help="folder for the figures (default: compare/ next to the first study)")
 
 
 def main(argv=None):
     """Entry point; returns the exit status (0 converged, 1 a level did not, 2 bad input)."""
     args = build_parser().parse_args(argv)
     setup_logging()
+    if args.command != "run":
+        from . import commands
+        return commands.COMMANDS[args.command](args)
     try:
         cfg = _load(args)
         _check_output(cfg, args.force)
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return _fail(args.config, err)
-    return run(cfg)
+    return run(cfg, quiet=args.quiet, verbose=args.verbose)
 
 
-def run(cfg):
-    """Run the study, writing results after each level and printing the table on rank 0."""
+def run(cfg, quiet=False, verbose=False):
+    """Run the study, writing results after each level, with progress, the table, tables and plots
+    on rank 0."""
     from mpi4py import MPI
-    from . import report, results, study
+    from . import progress, report, results, study
     comm = MPI.COMM_WORLD
-    levels = study.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    cfg = with_monitors(cfg) if verbose else cfg
+    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet)
+
+    def on_level(done):
+        shown.level_done(results.write(cfg, done))
+
+    levels = study.run_study(cfg, on_level=on_level, monitor=None if verbose or quiet else shown.monitor)
     rows = results.table(levels)
     if comm.rank == 0:
-        print(f"study {cfg.study}: {cfg.output_dir}")
-        print(report.format_table(rows))
+        written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
+                               plots=cfg.output.plots)
+        if not quiet:
+            print(f"study {cfg.study}: {cfg.output_dir}")
+            print(report.format_table(rows))
+            print("wrote " + ", ".join(path.name for path in written))
     return EXIT_OK if all(lv.outcome.converged for lv in levels) else EXIT_NOT_CONVERGED
+
+
+def with_monitors(cfg):
+    """cfg with PETSc's SNES/KSP monitors switched on (--verbose); the user's own options win."""
+    monitors = (("snes_monitor", ""), ("snes_converged_reason", ""), ("ksp_converged_reason", ""))
+    solver = dataclasses.replace(cfg.solver, petsc_options=monitors + cfg.solver.petsc_options)
+    return dataclasses.replace(cfg, solver=solver)
 
 
 def _load(args):

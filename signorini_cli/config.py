@@ -78,6 +78,9 @@ class Solver:
 @dataclass(frozen=True)
 class Output:
     dir: str = "results"
+    plots: bool = True    # PNG/PDF convergence, work-precision and Newton plots at the end of `run`
+    fields: bool = False  # u_h, its error and the Γ_C contact indicator per level as XDMF (ParaView)
+    digits: int = 3       # digits after the point of errors, h and eps in rates.md / rates.tex
 
 
 @dataclass(frozen=True)
@@ -229,8 +232,11 @@ def _solver(raw, path):
 
 
 def _output(raw, path):
-    _keys(raw, path, optional=("dir",))
-    return Output(dir=_string(raw.get("dir", "results"), f"{path}.dir"))
+    _keys(raw, path, optional=("dir", "plots", "fields", "digits"))
+    return Output(dir=_string(raw.get("dir", "results"), f"{path}.dir"),
+                  plots=_boolean(raw.get("plots", True), f"{path}.plots"),
+                  fields=_boolean(raw.get("fields", False), f"{path}.fields"),
+                  digits=_integer(raw.get("digits", 3), f"{path}.digits", low=1))
 
 
 # --- small validators ---------------------------------------------------------------------------
@@ -279,6 +285,12 @@ def _integer(value, path, low=None):
     return value
 
 
+def _boolean(value, path):
+    if not isinstance(value, bool):
+        raise ConfigError(path, f"must be true or false, got {_show(value)}")
+    return value
+
+
 def _string(value, path, empty=False):
     if not isinstance(value, str) or (not empty and not value.strip()):
         raise ConfigError(path, f"must be a non-empty string, got {_show(value)}")
@@ -296,3 +308,27 @@ def _expression(text, path, variables):
         return expressions.parse(text, variables)
     except expressions.ExpressionError as err:
         raise ConfigError(path, str(err)) from None
+
+
+# --- resolved settings ----------------------------------------------------------------------------
+
+def to_dict(cfg):
+    """The resolved config as plain YAML data, every default filled in; `from_dict` reads it back."""
+    out = _plain(cfg)
+    out.pop("text", None)
+    out = {"study": out.pop("study"), "description": out.pop("description"), **out}
+    if cfg.epsilon.law != "power":
+        out["epsilon"].pop("exponent")  # only meaningful with law: power (rejected otherwise)
+    return out
+
+
+def _plain(value):
+    if isinstance(value, expressions.Expression):
+        return value.text
+    if dataclasses.is_dataclass(value):
+        fields = ((f.name, getattr(value, f.name)) for f in dataclasses.fields(value))
+        return {name: dict(item) if name == "petsc_options" else _plain(item)  # (name, value) pairs
+                for name, item in fields if item is not None}
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    return value

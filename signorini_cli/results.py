@@ -1,8 +1,10 @@
 """The study's record on disk: rates.csv and study.h5, rewritten atomically after every level."""
 import csv
+import functools
 import io
 import os
 import platform
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -104,12 +106,42 @@ def _write_h5(path, cfg, levels, rows, mpi_size):
         h5.attrs["levels_done"] = len(levels)
         for name, version in versions().items():
             h5.attrs[f"version_{name}"] = version
+        _write_provenance(h5, cfg, levels)
         _write_table(h5.create_group("table"), rows)
         for lv, row in zip(levels, rows):
             _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row, np)
 
 
+def _write_provenance(h5, cfg, levels):
+    """The resolved config (--set overrides and defaults included), git revision, total wall time."""
+    import yaml
+    from .config import to_dict
+    h5.attrs["config_resolved"] = yaml.safe_dump(to_dict(cfg), sort_keys=False)
+    h5.attrs["time_total_s"] = float(sum(lv.time_s for lv in levels))
+    if git_revision():
+        h5.attrs["git_revision"] = git_revision()
+
+
+@functools.lru_cache(maxsize=1)
+def git_revision():
+    """The commit of the signorini checkout ('+dirty' with uncommitted changes), or '' outside git."""
+    source = Path(__file__).resolve().parent
+    if not (source.parent / "pyproject.toml").exists():
+        return ""  # an installed copy, not a checkout: any repository around it is not ours
+    try:
+        head = subprocess.run(["git", "-C", str(source), "rev-parse", "HEAD"], capture_output=True,
+                              text=True, timeout=10)
+        dirty = subprocess.run(["git", "-C", str(source), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.TimeoutExpired):
+        return ""
+    if head.returncode != 0:
+        return ""
+    return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+
+
 def _write_table(group, rows):
+    group.attrs["columns"] = list(rows[0]) if rows else []  # HDF5 lists datasets by name, not in order
     for column in (rows[0] if rows else {}):
         values = [row[column] for row in rows]
         if all(isinstance(v, str) for v in values):

@@ -41,7 +41,7 @@ def petsc_options(solver_cfg, dim):
 class NewtonSolver:
     """SNES on F(u) = 0 with Jacobian J, Dirichlet conditions `bcs`; u holds the initial guess."""
 
-    def __init__(self, F, J, u, bcs, options, prefix=None):
+    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None):
         self.L, self.a, self.u, self.bcs = fem.form(F), fem.form(J), u, bcs
         self.b = fem_petsc.create_vector(self.L)
         self.A = fem_petsc.create_matrix(self.a)
@@ -55,6 +55,8 @@ class NewtonSolver:
         self.snes.setFromOptions()
         self.snes.getKSP().setFromOptions()
         self.snes.setConvergenceHistory()
+        if monitor is not None:
+            self.snes.setMonitor(monitor)
 
     def solve(self):
         """Run Newton from the current u; return the Outcome and leave the iterate in u."""

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 from mpi4py import MPI
 from dolfinx import fem
 
-from . import meshes, measure, model, solver
+from . import fields, meshes, measure, model, solver
 from .meshes import DIRICHLET
 
 
@@ -23,11 +23,12 @@ class Level:
     extra: dict = field(default_factory=dict)
 
 
-def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD):
-    """Solve every level of `cfg`; call on_level(levels_so_far) after each; return the levels."""
+def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None):
+    """Solve every level of `cfg`; call on_level(levels_so_far) after each; return the levels.
+    `monitor(snes, its, fnorm)`, if given, is called at every Newton iteration (progress)."""
     levels = []
     for index, n in enumerate(cfg.mesh.refinements):
-        levels.append(solve_level(cfg, index, n, comm))
+        levels.append(solve_level(cfg, index, n, comm, monitor))
         if on_level is not None:
             on_level(levels)
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
@@ -35,7 +36,7 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD):
     return levels
 
 
-def solve_level(cfg, index, n, comm=MPI.COMM_WORLD):
+def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None):
     """Build, solve and measure the level with n cells per side."""
     start = time.perf_counter()
     domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
@@ -45,13 +46,16 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD):
     u_h = fem.Function(V, name="u_h")
     forms = model.forms(cfg, domain, u_h, eps)
     bcs = [dirichlet_condition(V, domain, forms.u_exact)]
-    newton = solver.NewtonSolver(forms.F, forms.J, u_h, bcs, solver.petsc_options(cfg.solver, cfg.dimension))
+    newton = solver.NewtonSolver(forms.F, forms.J, u_h, bcs, solver.petsc_options(cfg.solver, cfg.dimension),
+                                 monitor=monitor)
     outcome = newton.solve()
     newton.destroy()
     # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
     errors = measure.errors(u_h, forms.u_exact) if forms.u_exact is not None else {}
     elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+    if cfg.output.fields:
+        fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
     return Level(index, n, domain.h, dofs, eps_value, outcome, errors, elapsed)
 
 

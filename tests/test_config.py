@@ -84,3 +84,25 @@ def test_load_keeps_text(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text(yaml.safe_dump(BASE))
     assert config.load(path).text == path.read_text()
+
+
+def test_output_report_keys():
+    assert load({}).output == config.Output(dir="results", plots=True, fields=False, digits=3)
+    cfg = load({"output": {"plots": False, "fields": True, "digits": 5}})
+    assert (cfg.output.plots, cfg.output.fields, cfg.output.digits) == (False, True, 5)
+    with pytest.raises(config.ConfigError, match=r"^output.digits: must be >= 1, got 0"):
+        load({"output": {"digits": 0}})
+    with pytest.raises(config.ConfigError, match=r"^output.fields: must be true or false, got str 'yes'"):
+        load({"output": {"fields": "yes"}})
+
+
+@pytest.mark.parametrize("changes", [
+    pytest.param({}, id="defaults"),
+    pytest.param({"epsilon": {"law": "power", "exponent": 1.5}, "positive_part": "smooth",
+                  "solver": {"petsc_options": {"ksp_view": None}}}, id="power-smooth-options"),
+    pytest.param({"problem": {"exact": None, "f": "-10"}}, id="data-only"),
+])
+def test_to_dict_round_trip(changes):
+    resolved = config.to_dict(load(changes))
+    assert config.to_dict(config.from_dict(resolved)) == resolved
+    assert list(resolved)[:2] == ["study", "description"] and "text" not in resolved

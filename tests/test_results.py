@@ -1,8 +1,11 @@
 """rates.csv and study.h5: SPEC columns, written after every level, readable when cut short."""
 import csv
+import re
 
 import h5py
 import pytest
+import yaml
+from mpi4py import MPI
 
 from signorini_cli import results, study
 
@@ -34,3 +37,16 @@ def test_half_finished_study_is_readable(make_config):
         assert h5["table/L2"][1] == pytest.approx(float(rows[1]["L2"]), rel=1e-15)
         assert h5["level_01"].attrs["N"] == 8 and len(h5["level_01/residuals"]) >= 2
     assert not list(cfg.output_dir.glob(".*tmp"))  # atomic replace left no temporary files
+
+
+def test_h5_records_resolved_config_column_order_and_revision(make_config):
+    cfg = make_config(mesh={"refinements": [4]})
+    rows = results.write(cfg, study.run_study(cfg, comm=MPI.COMM_SELF), comm=MPI.COMM_SELF)
+    with h5py.File(cfg.output_dir / "study.h5") as h5:
+        assert list(h5["table"].attrs["columns"]) == list(rows[0])
+        assert yaml.safe_load(h5.attrs["config_resolved"])["output"]["digits"] == 3  # defaults filled in
+        assert h5.attrs["time_total_s"] == pytest.approx(rows[0]["time_s"])
+        if results.git_revision():  # the tests run from a git checkout; an unpacked copy has none
+            assert re.fullmatch(r"[0-9a-f]{40}(\+dirty)?", h5.attrs["git_revision"])
+        else:
+            assert "git_revision" not in h5.attrs

@@ -1,0 +1,88 @@
+"""Progress of a running study on rank 0: a line per finished level, Newton steps of long levels, an ETA."""
+import sys
+import time
+
+import numpy as np
+
+from .report import norms
+
+NEWTON_AFTER_S = 3.0  # a level running longer than this shows its Newton iterations as they come
+ETA_LEVELS = 3        # cost ~ dofs^p is fitted over the last 3 levels
+MIN_EXPONENT = 1.0    # no solver is cheaper than linear in dofs: coarse levels (JIT, set-up) fit below 1
+
+
+class Progress:
+    """Prints to `stream` (stderr) if `show` (rank 0, not --quiet); `level_done(rows)` after each level,
+    `monitor` is a SNES monitor."""
+
+    def __init__(self, cfg, show=True, stream=None, newton_after=NEWTON_AFTER_S, clock=time.perf_counter):
+        self.refinements, self.dim = cfg.mesh.refinements, cfg.dimension
+        self.show = show
+        self.stream = stream or sys.stderr
+        self.newton_after, self.clock = newton_after, clock
+        self.level, self.started = 0, clock()
+
+    def level_done(self, rows):
+        """Print the line of the level just finished (the last row) with the time left for the others."""
+        self.level, self.started = len(rows), self.clock()
+        if self.show:
+            eta = remaining_time(rows, self.refinements[len(rows):], self.dim)
+            left = f"  ~{format_duration(eta)} left" if eta else ""
+            self._print(level_line(rows[-1]) + left)
+
+    def monitor(self, snes, its, fnorm):
+        """SNES monitor: once the level has run NEWTON_AFTER_S, one line per Newton iteration."""
+        elapsed = self.clock() - self.started
+        if self.show and elapsed > self.newton_after:
+            n = self.refinements[self.level] if self.level < len(self.refinements) else "?"
+            self._print(f"  level {self.level} (N={n}): Newton iteration {its}, "
+                        f"|F| = {fnorm:.3e}  ({format_duration(elapsed)})")
+
+    def _print(self, line):
+        print(line, file=self.stream, flush=True)
+
+
+def level_line(row):
+    """level, N, dofs, eps, Newton iterations, errors with rates, time: one line."""
+    parts = [f"level {row['level']}", f"N={row['N']}", f"dofs={row['dofs']}", f"eps={row['epsilon']:.3e}"]
+    if row["converged"]:
+        parts.append(f"newton {row['newton_its']}")
+    else:
+        parts.append(f"NOT CONVERGED after {row['newton_its']} ({row['reason']})")
+    for norm in norms([row]):
+        if row.get(norm) is not None:
+            rate = row[f"rate_{norm}"]
+            parts.append(f"{norm} {row[norm]:.3e}" + (f" (rate {rate:.2f})" if rate is not None else ""))
+    parts.append(format_duration(row["time_s"]))
+    return "  ".join(parts)
+
+
+def remaining_time(rows, refinements_left, dim):
+    """Seconds the levels still to come will take, from time ~ dofs^p fitted over the last levels;
+    their dofs are estimated as dofs ~ N^dim. None when nothing is left or nothing is measured."""
+    if not refinements_left or not rows:
+        return None
+    last = rows[-1]
+    p = cost_exponent([row["dofs"] for row in rows], [row["time_s"] for row in rows])
+    return sum(last["time_s"] * ((n / last["N"]) ** dim) ** p for n in refinements_left)
+
+
+def cost_exponent(dofs, seconds, k=ETA_LEVELS):
+    """Least-squares p in time ~ dofs^p over the last k levels, at least MIN_EXPONENT."""
+    dofs, seconds = np.asarray(dofs[-k:], dtype=float), np.asarray(seconds[-k:], dtype=float)
+    if len(dofs) < 2 or np.ptp(np.log(dofs)) == 0 or np.any(seconds <= 0):
+        return MIN_EXPONENT
+    return max(MIN_EXPONENT, float(np.polyfit(np.log(dofs), np.log(seconds), 1)[0]))
+
+
+def format_duration(seconds):
+    """0.42 s, 12.3 s, 4 min 05 s, 2 h 03 min."""
+    if seconds < 10:
+        return f"{seconds:.2f} s"
+    if seconds < 60:
+        return f"{seconds:.1f} s"
+    if seconds < 3600:
+        minutes, s = divmod(int(round(seconds)), 60)
+        return f"{minutes} min {s:02d} s"
+    hours, minutes = divmod(int(round(seconds / 60)), 60)
+    return f"{hours} h {minutes:02d} min"

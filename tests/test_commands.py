@@ -1,0 +1,143 @@
+"""check, list, report and compare from the command line; run's --quiet and --verbose."""
+import pytest
+import yaml
+
+from signorini_cli import cli, config, results, study
+from conftest import BASE, merge
+
+
+def write(tmp_path, name="c.yaml", **changes):
+    path = tmp_path / name
+    raw = merge(BASE, {"output": {"dir": str(tmp_path / "out")}})
+    path.write_text(yaml.safe_dump(merge(raw, changes)))
+    return str(path)
+
+
+def test_check_prints_every_default(tmp_path, capsys):
+    assert cli.main(["check", write(tmp_path)]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    resolved = yaml.safe_load(out)
+    # keys the file does not give, filled in with their defaults
+    assert resolved["solver"] == {"rtol": 1e-10, "atol": 1e-12, "max_it": 50, "linear": "auto",
+                                  "line_search": "bt", "on_failure": "continue", "petsc_options": {}}
+    assert resolved["output"]["plots"] is True and resolved["output"]["fields"] is False
+    assert resolved["positive_part"] == {"kind": "exact"} and resolved["mesh"]["diagonal"] == "right"
+    assert "refinements: [4, 8]" in out
+    assert config.to_dict(config.from_dict(resolved)) == resolved  # the printout is a valid config
+
+
+def test_check_applies_set_and_output(tmp_path, capsys):
+    args = ["check", write(tmp_path), "--set", "epsilon.theta=10", "--set", "solver.petsc_options={a: 1}",
+            "--output", str(tmp_path / "o")]
+    assert cli.main(args) == cli.EXIT_OK
+    resolved = yaml.safe_load(capsys.readouterr().out)
+    assert resolved["epsilon"]["theta"] == 10.0 and resolved["solver"]["petsc_options"] == {"a": "1"}
+    assert resolved["output"]["dir"] == str(tmp_path / "o")
+
+
+@pytest.mark.parametrize("override, message", [
+    pytest.param("alpha=0", "alpha: must be >= 1, got 0", id="range"),
+    pytest.param("epsilon.law=thetah", "epsilon.law: 'thetah' is not one of theta_h", id="choice"),
+    pytest.param("solver.rtl=1e-8", "solver.rtl: unknown key in solver (did you mean 'rtol'?)", id="typo"),
+    pytest.param("alpha.x=1", "alpha: is not a mapping, cannot set a sub-key", id="not-mapping"),
+    pytest.param("alpha", "--set: expected KEY=VALUE, got 'alpha'", id="no-equals"),
+    pytest.param("output.plots=maybe", "output.plots: must be true or false, got str 'maybe'", id="bool"),
+    pytest.param("mesh.refinements=[8, 4]", "mesh.refinements: must increase, got [8, 4]", id="order"),
+])
+@pytest.mark.parametrize("command", ["check", "run"])
+def test_set_validation_errors(tmp_path, capsys, command, override, message):
+    path = write(tmp_path)
+    assert cli.main([command, path, "--set", override]) == cli.EXIT_BAD_INPUT
+    captured = capsys.readouterr()
+    assert captured.err.startswith(f"signorini: error: {path}: {message}")
+    assert captured.err.count("\n") == 1 and "Traceback" not in captured.err
+    assert not (tmp_path / "out").exists()  # nothing ran
+
+
+def test_list_shows_descriptions(tmp_path, capsys):
+    (tmp_path / "paper").mkdir()
+    write(tmp_path / "paper", "a.yaml", description="first study")
+    (tmp_path / "bad.yaml").write_text("study: x\n")
+    assert cli.main(["list", str(tmp_path)]) == cli.EXIT_OK
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("bad.yaml") and "(invalid: mesh: missing required key)" in lines[0]
+    assert lines[1].split(None, 1) == ["paper/a.yaml", "first study"]
+
+
+def test_list_shipped_configs(capsys):
+    assert cli.main(["list"]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert "demo.yaml" in out and "(invalid" not in out and "(no description)" not in out
+
+
+class Interrupt(Exception):
+    pass
+
+
+def stop_after(cfg, k):
+    def write_then_stop(levels):
+        results.write(cfg, levels)
+        if len(levels) == k:
+            raise Interrupt
+    with pytest.raises(Interrupt):
+        study.run_study(cfg, on_level=write_then_stop)
+
+
+def test_report_partial_study(make_config, capsys):
+    cfg = make_config(mesh={"refinements": [4, 8, 16]})
+    stop_after(cfg, 2)  # killed during its third level
+    folder = cfg.output_dir
+    assert cli.main(["report", str(folder), "--digits", "2"]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert out.startswith("study t: 2 of 3 levels (partial study)")
+    assert "rate_L2" in out and "wrote into" in out
+    table = (folder / "rates.md").read_text().splitlines()
+    assert len(table) == 1 + 2 + 2 and table[-1].startswith("| 8 | 1.77e-01 |")  # comment, header, 2 levels
+    assert r"\toprule" in (folder / "rates.tex").read_text()
+    for name in ("convergence", "work_precision", "newton"):
+        assert (folder / f"{name}.png").stat().st_size > 0 and (folder / f"{name}.pdf").exists()
+
+
+def test_report_from_csv_only_no_plots(make_config, tmp_path, capsys):
+    cfg = make_config()
+    stop_after(cfg, 1)
+    (cfg.output_dir / "study.h5").unlink()
+    out_dir = tmp_path / "elsewhere"
+    args = ["report", str(cfg.output_dir / "rates.csv"), "--no-plots", "--output", str(out_dir)]
+    assert cli.main(args) == cli.EXIT_OK
+    assert capsys.readouterr().out.startswith("study t: 1 levels")
+    assert sorted(p.name for p in out_dir.iterdir()) == ["rates.md", "rates.tex"]
+
+
+def test_report_not_a_study_exit_2(tmp_path, capsys):
+    assert cli.main(["report", str(tmp_path)]) == cli.EXIT_BAD_INPUT
+    assert "not a study folder" in capsys.readouterr().err
+
+
+def test_compare_two_studies(make_config, tmp_path, capsys):
+    for theta in (1, 10):
+        cfg = make_config(study=f"theta{theta}", epsilon={"theta": theta})
+        results.write(cfg, study.run_study(cfg))
+    folders = [str(tmp_path / "results" / f"theta{t}") for t in (1, 10)]
+    assert cli.main(["compare", *folders]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert out.splitlines()[1].startswith("theta1 ") and out.splitlines()[2].startswith("theta10 ")
+    assert (tmp_path / "results" / "compare" / "compare_convergence.pdf").exists()
+    assert cli.main(["compare", *folders, "--label", "one"]) == cli.EXIT_BAD_INPUT
+    assert "--label: give one per study" in capsys.readouterr().err
+
+
+def test_run_progress_and_quiet(tmp_path, capsys):
+    path = write(tmp_path, output={"plots": False})
+    assert cli.main(["run", path]) == cli.EXIT_OK
+    captured = capsys.readouterr()
+    assert [line.split()[:2] for line in captured.err.splitlines()] == [["level", "0"], ["level", "1"]]
+    assert "(rate " in captured.err.splitlines()[1] and "study t" in captured.out
+    assert cli.main(["run", path, "--force", "--quiet"]) == cli.EXIT_OK
+    assert capsys.readouterr() == ("", "")
+
+
+def test_run_verbose_adds_petsc_monitors(make_config):
+    cfg = cli.with_monitors(make_config(solver={"petsc_options": {"snes_monitor": "draw"}}))
+    options = dict(cfg.solver.petsc_options)
+    assert options["snes_monitor"] == "draw" and "ksp_converged_reason" in options  # the user's option wins

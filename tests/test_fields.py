@@ -1,0 +1,48 @@
+"""output.fields: u_h, its nodal error and the Γ_C contact indicator per level as XDMF, serial and 2 ranks."""
+import h5py
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from signorini_cli import study
+
+
+def check_fields(cfg, levels):
+    """Read the XDMF's HDF5 back: error = u_h − u_ex at the nodes, contact = 1 exactly where u_h > 0 on y = 0."""
+    for lv in levels:
+        with h5py.File(cfg.output_dir / "fields" / f"level_{lv.index:02d}.h5", "r") as h5:
+            x = h5["Mesh/mesh/geometry"][:]
+            u_h, error, contact = (h5[f"Function/{name}/0"][:, 0] for name in ("u_h", "error", "contact"))
+            tags = h5["MeshTags/boundary/Values"][:]
+        u_exact = np.sin(2 * np.pi * x[:, 0]) * (1 - x[:, 1]) ** 2
+        assert len(u_h) == lv.dofs and set(np.unique(tags)) == {1, 2}
+        assert np.allclose(error, u_h - u_exact, atol=1e-14)  # interpolation is exact at the nodes
+        assert np.array_equal(contact == 1, (x[:, 1] == 0) & (u_h > 0))
+        assert 0 < contact.sum() < np.sum(x[:, 1] == 0)  # part of Γ_C is in contact, part is not
+
+
+def test_fields_written_per_level(make_config):
+    cfg = make_config(output={"fields": True})
+    check_fields(cfg, study.run_study(cfg))
+
+
+def test_fields_off_by_default(make_config):
+    cfg = make_config(mesh={"refinements": [4]})
+    study.run_study(cfg)
+    assert not (cfg.output_dir / "fields").exists()
+
+
+@pytest.mark.mpi
+def test_fields_two_ranks(make_config, tmp_path_factory):
+    comm = MPI.COMM_WORLD
+    assert comm.size == 2
+    folder = comm.bcast(str(tmp_path_factory.mktemp("fields")) if comm.rank == 0 else None)
+    cfg = make_config(output={"fields": True, "dir": folder})
+    levels = study.run_study(cfg)
+    failures = []
+    if comm.rank == 0:
+        try:
+            check_fields(cfg, levels)
+        except AssertionError as err:
+            failures.append(str(err))
+    assert not comm.allreduce(failures)  # both ranks fail together, neither hangs
