@@ -91,7 +91,7 @@ def study_config(study):
 def _levels_done(study, cfg):
     done = len(study.rows)
     if cfg is None or done >= len(cfg.mesh.refinements):
-        return f"{done} levels"
+        return f"{done} level{'s' if done != 1 else ''}"
     return f"{done} of {len(cfg.mesh.refinements)} levels (partial study)"
 
 

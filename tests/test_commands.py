@@ -105,7 +105,7 @@ def test_report_from_csv_only_no_plots(make_config, tmp_path, capsys):
     out_dir = tmp_path / "elsewhere"
     args = ["report", str(cfg.output_dir / "rates.csv"), "--no-plots", "--output", str(out_dir)]
     assert cli.main(args) == cli.EXIT_OK
-    assert capsys.readouterr().out.startswith("study t: 1 levels")
+    assert capsys.readouterr().out.startswith("study t: 1 level from")
     assert sorted(p.name for p in out_dir.iterdir()) == ["rates.md", "rates.tex"]
 
 
