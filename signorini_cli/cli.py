@@ -10,6 +10,7 @@ import yaml
 from .config import ConfigError
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
 
 
 def build_parser():
@@ -67,7 +68,7 @@ def run(cfg, quiet=False, verbose=False):
     """Run the study, writing results after each level, with progress, the table, tables and plots
     on rank 0."""
     from mpi4py import MPI
-    from . import progress, report, results, study
+    from . import progress, report, results, study, verdict
     comm = MPI.COMM_WORLD
     cfg = with_monitors(cfg) if verbose else cfg
     shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet)
@@ -77,13 +78,17 @@ def run(cfg, quiet=False, verbose=False):
 
     levels = study.run_study(cfg, on_level=on_level, monitor=None if verbose or quiet else shown.monitor)
     rows = results.table(levels)
+    summary = verdict.summarize(cfg, levels)
     if comm.rank == 0:
         written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
                                plots=cfg.output.plots)
         if not quiet:
             print(f"study {cfg.study}: {cfg.output_dir}")
             print(report.format_table(rows))
+            print(verdict.format_summary(summary))
             print("wrote " + ", ".join(path.name for path in written))
+    if not summary.met:  # the user's `expect:` block: batch runs gate on it
+        return EXIT_EXPECTATION_NOT_MET
     return EXIT_OK if all(lv.outcome.converged for lv in levels) else EXIT_NOT_CONVERGED
 
 

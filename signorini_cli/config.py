@@ -20,6 +20,13 @@ LINE_SEARCHES = ("bt", "basic", "l2", "cp")
 ON_FAILURE = ("continue", "stop")
 MAX_ALPHA_3D = 3.0  # the paper's condition (5): 1 <= alpha <= 3 when d = 3
 COORDINATES = {2: ("x", "y"), 3: ("x", "y", "z")}
+# verification.measures: what a level measures beyond L2/H1 (issue 4; README "Verification")
+MEASURES = ("L2_gc", "pos_gc", "energy_err", "penetration", "contact_measure", "contact_force", "energy", "diff")
+REFERENCE_EPSILONS = ("per_level", "fixed")
+MAX_REFERENCE_REFINEMENTS = 2
+# rate columns an `expect:` block may name: exact-solution errors, errors against a reference, differences
+ERROR_NORMS = ("L2", "H1", "L2_gc", "pos_gc", "pos_gc_scaled", "energy_err")
+REFERENCE_NORMS = tuple(f"{norm}_ref" for norm in ERROR_NORMS) + ("diff_L2", "diff_H1")
 
 
 class ConfigError(ValueError):
@@ -76,6 +83,23 @@ class Solver:
 
 
 @dataclass(frozen=True)
+class Verification:
+    """Rate fits, verdict tolerance, extra measures, and the reference solution of data-only scenes."""
+    fit_levels: int = 3          # least-squares slope over the last k converged levels
+    tolerance: float = 0.1       # verdict: agrees when observed >= proven - tolerance
+    measures: tuple = None       # None: every measure the scene can have
+    reference_refinements: int = 1   # data-only scenes: uniform refinements of the finest level (0: none)
+    reference_epsilon: str = "per_level"  # per_level: reference at each level's eps | fixed: one eps
+
+
+@dataclass(frozen=True)
+class Expect:
+    """Rates the user requires: exit status 1 when an observed fitted rate < rate - tolerance."""
+    rates: tuple = ()            # (norm, rate) pairs
+    tolerance: float = 0.1
+
+
+@dataclass(frozen=True)
 class Output:
     dir: str = "results"
     plots: bool = True    # PNG/PDF convergence, work-precision and Newton plots at the end of `run`
@@ -96,6 +120,8 @@ class Config:
     solver: Solver = Solver()
     output: Output = Output()
     description: str = ""
+    verification: Verification = Verification()
+    expect: Expect = None
     text: str = field(default="", repr=False, compare=False)  # the YAML as given, for the record
 
     @property
@@ -142,7 +168,7 @@ def from_dict(raw):
     """Validate a raw mapping into a Config."""
     _keys(raw, "", required=("study", "mesh", "contact"),
           optional=("dimension", "alpha", "epsilon", "problem", "positive_part", "solver",
-                    "output", "description"))
+                    "output", "description", "verification", "expect"))
     study = _string(raw["study"], "study")
     if "/" in study or study in (".", ".."):
         raise ConfigError("study", f"must be a plain folder name, got {study!r}")
@@ -162,6 +188,8 @@ def from_dict(raw):
                   positive_part=_positive_part(raw.get("positive_part", "exact"), "positive_part"),
                   solver=_solver(raw.get("solver", {}), "solver"),
                   output=_output(raw.get("output", {}), "output"),
+                  verification=_verification(raw.get("verification", {}), "verification", raw.get("problem")),
+                  expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=_string(raw.get("description", ""), "description", empty=True))
 
 
@@ -239,6 +267,45 @@ def _output(raw, path):
                   digits=_integer(raw.get("digits", 3), f"{path}.digits", low=1))
 
 
+def _verification(raw, path, problem):
+    _keys(raw, path, optional=("fit_levels", "tolerance", "measures", "reference_refinements",
+                               "reference_epsilon"))
+    data_only = isinstance(problem, dict) and "exact" not in problem
+    for key in ("reference_refinements", "reference_epsilon"):
+        if key in raw and not data_only:
+            raise ConfigError(f"{path}.{key}", "only meaningful without problem.exact (data-only scenes)")
+    measures = raw.get("measures")
+    if measures is not None:
+        if not isinstance(measures, list):
+            raise ConfigError(f"{path}.measures", f"must be a list of {', '.join(MEASURES)}")
+        measures = tuple(_choice(m, f"{path}.measures[{i}]", MEASURES) for i, m in enumerate(measures))
+        if len(set(measures)) != len(measures):
+            raise ConfigError(f"{path}.measures", f"lists a measure twice: {list(measures)}")
+    return Verification(
+        fit_levels=_integer(raw.get("fit_levels", 3), f"{path}.fit_levels", low=2),
+        tolerance=_number(raw.get("tolerance", 0.1), f"{path}.tolerance", low=0.0),
+        measures=measures,
+        reference_refinements=_integer(raw.get("reference_refinements", 1), f"{path}.reference_refinements",
+                                       low=0, high=MAX_REFERENCE_REFINEMENTS),
+        reference_epsilon=_choice(raw.get("reference_epsilon", "per_level"), f"{path}.reference_epsilon",
+                                  REFERENCE_EPSILONS))
+
+
+def _expect(raw, path, problem):
+    _keys(raw, path, required=("rates",), optional=("tolerance",))
+    rates = raw["rates"]
+    if not isinstance(rates, dict) or not rates:
+        raise ConfigError(f"{path}.rates", "must be a mapping of norm to rate, e.g. {L2: 2.0, H1: 1.0}")
+    data_only = isinstance(problem, dict) and "exact" not in problem
+    norms = REFERENCE_NORMS if data_only else ERROR_NORMS + REFERENCE_NORMS[-2:]  # diff_* in both
+    for norm in rates:
+        if norm not in norms:
+            scene = "a data-only scene (no exact solution)" if data_only else "a manufactured scene"
+            raise ConfigError(f"{path}.rates.{norm}", f"not a rate column of {scene}; one of {', '.join(norms)}")
+    return Expect(rates=tuple((norm, _number(rate, f"{path}.rates.{norm}")) for norm, rate in rates.items()),
+                  tolerance=_number(raw.get("tolerance", 0.1), f"{path}.tolerance", low=0.0))
+
+
 # --- small validators ---------------------------------------------------------------------------
 
 def _keys(raw, path, required=(), optional=()):
@@ -277,11 +344,13 @@ def _number(value, path, low=None, positive=False):
     return value
 
 
-def _integer(value, path, low=None):
+def _integer(value, path, low=None, high=None):
     if isinstance(value, bool) or not isinstance(value, int):
         raise ConfigError(path, f"must be an integer, got {_show(value)}")
     if low is not None and value < low:
         raise ConfigError(path, f"must be >= {low}, got {value}")
+    if high is not None and value > high:
+        raise ConfigError(path, f"must be <= {high}, got {value}")
     return value
 
 
@@ -319,6 +388,11 @@ def to_dict(cfg):
     out = {"study": out.pop("study"), "description": out.pop("description"), **out}
     if cfg.epsilon.law != "power":
         out["epsilon"].pop("exponent")  # only meaningful with law: power (rejected otherwise)
+    if cfg.problem.exact is not None:  # the reference keys are for data-only scenes (rejected otherwise)
+        for key in ("reference_refinements", "reference_epsilon"):
+            out["verification"].pop(key)
+    if cfg.expect is not None:
+        out["expect"]["rates"] = dict(cfg.expect.rates)
     return out
 
 

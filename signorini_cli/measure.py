@@ -21,3 +21,95 @@ def errors(u_h, u_exact):
     e = u_h - u_exact
     return {"L2": np.sqrt(abs(integrate(e**2, dx))),
             "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
+
+
+# --- Γ_C: the contact-boundary terms of Lemma 3.1 and Corollary 3.2, and what a user quotes ---------
+
+def positive(u):
+    """[u]_+ in UFL."""
+    return ufl.conditional(ufl.gt(u, 0), u, 0)
+
+
+def contact_errors(u_h, u, eps, alpha, ds_c, h1):
+    """Γ_C errors of u_h against u (exact expression or reference Function), given the H1 seminorm h1:
+    L2_gc = ||u - u_h||_{L2(Γ_C)}, pos_gc = ||[u]_+ - [u_h]_+||_{L^{alpha+1}(Γ_C)}, its scaled form
+    pos_gc^{(alpha+1)/2} (Cor. 3.2 ii) and energy_err = (h1^2 + pos_gc^{alpha+1}/eps)^{1/2} (Lemma 3.1)."""
+    l2_gc = np.sqrt(abs(integrate((u - u_h) ** 2, ds_c)))
+    pos_power = abs(integrate(abs(positive(u) - positive(u_h)) ** (alpha + 1), ds_c))
+    pos_gc = pos_power ** (1 / (alpha + 1))
+    return {"L2_gc": l2_gc, "pos_gc": pos_gc, "pos_gc_scaled": pos_gc ** ((alpha + 1) / 2),
+            "energy_err": np.sqrt(h1**2 + pos_power / eps)}
+
+
+def contact_force(u_h, eps, alpha, ds_c):
+    """The total contact force (1/eps) ∫_Γc [u_h]_+^alpha (the boundary term of eq. (10) with v = 1)."""
+    return integrate(positive(u_h) ** alpha, ds_c) / eps
+
+
+def energy(u_h, f, g, eps, alpha, dx, ds_c):
+    """The potential whose derivative is the weak form (10) with data g:
+    J(u_h) = ½∫|∇u_h|² + 1/(eps(alpha+1)) ∫_Γc [u_h]_+^{alpha+1} - ∫ f u_h - (1/eps) ∫_Γc g u_h."""
+    bulk = integrate(ufl.inner(ufl.grad(u_h), ufl.grad(u_h)) / 2 - f * u_h, dx)
+    return bulk + integrate(positive(u_h) ** (alpha + 1) / (alpha + 1) - g * u_h, ds_c) / eps
+
+
+def penetration(u_h, contact_dofs):
+    """The largest penetration max_{Γ_C} [u_h]_+: for P1 attained at a vertex of Γ_C."""
+    values = u_h.x.array[contact_dofs]
+    local = float(values.max()) if values.size else 0.0
+    return max(u_h.function_space.mesh.comm.allreduce(local, op=MPI.MAX), 0.0)
+
+
+def contact_measure(u_h, facet_dofs, facet_points):
+    """|{u_h > 0} ∩ Γ_C|, exact for P1: on each Γ_C facet (vertex dofs, vertex points) the positive
+    part of a linear function covers a fraction of the facet known in closed form."""
+    values = u_h.x.array[facet_dofs]
+    local = float(np.sum(facet_sizes(facet_points) * positive_fraction(values))) if len(values) else 0.0
+    return u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
+def facet_sizes(points):
+    """Lengths (segments) or areas (triangles) of facets given as (n, vertices, 3) points."""
+    if points.shape[1] == 2:
+        return np.linalg.norm(points[:, 1] - points[:, 0], axis=1)
+    return np.linalg.norm(np.cross(points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]), axis=1) / 2
+
+
+def positive_fraction(values):
+    """Fraction of a simplex where the linear function with these vertex values is > 0."""
+    v = -np.sort(-values, axis=1)  # descending: v[:, 0] >= v[:, 1] >= ...
+    top, low = v[:, 0], v[:, -1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if v.shape[1] == 2:  # segment: the zero splits it at top/(top - low)
+            part = top / (top - low)
+        else:  # triangle: one vertex above zero cuts a corner triangle, two leave one cut off below
+            mid = v[:, 1]
+            part = np.where(mid > 0, 1 - low**2 / ((top - low) * (mid - low)),
+                            top**2 / ((top - mid) * (top - low)))
+    return np.where(low > 0, 1.0, np.where(top <= 0, 0.0, part))
+
+
+def contact_facet_dofs(V, facet_tags, marker):
+    """(dofs, points): for each facet tagged `marker` and owned by this rank, the P1 dofs and
+    coordinates of its vertices, shape (facets, vertices) and (facets, vertices, 3)."""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    facets = facet_tags.indices[facet_tags.values == marker]
+    facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]  # owned: counted once
+    msh.topology.create_connectivity(tdim - 1, 0)
+    f2v = msh.topology.connectivity(tdim - 1, 0).array.reshape(-1, tdim)  # simplices: tdim vertices
+    dofs = vertex_to_dof(V)[f2v[facets]]
+    return dofs, V.tabulate_dof_coordinates()[dofs]
+
+
+def vertex_to_dof(V):
+    """The P1 dof at each (local) vertex: a cell lists its vertices and its P1 dofs in the same order."""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim, 0)
+    cell_vertices = msh.topology.connectivity(tdim, 0).array.reshape(-1, tdim + 1)
+    cell_dofs = V.dofmap.list.array.reshape(-1, tdim + 1)
+    index_map = msh.topology.index_map(0)
+    v2d = np.full(index_map.size_local + index_map.num_ghosts, -1, dtype=np.int32)
+    v2d[cell_vertices] = cell_dofs
+    return v2d

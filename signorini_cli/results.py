@@ -11,6 +11,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from . import rates
+from . import verdict
 
 SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
                 "L2", "rate_L2", "H1", "rate_H1", "time_s")
@@ -42,11 +43,13 @@ def table(levels):
 def write(cfg, levels, comm=MPI.COMM_WORLD):
     """Write rates.csv and study.h5 for the levels so far (rank 0 writes, every rank waits)."""
     rows = table(levels)
+    summary = verdict.summarize(cfg, levels)
     if comm.rank == 0:
         folder = cfg.output_dir
         folder.mkdir(parents=True, exist_ok=True)
         _replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
-        _replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, comm.size))
+        _replace(folder / "summary.csv", lambda path: path.write_text(verdict.csv_text(summary)))
+        _replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, comm.size, summary))
     comm.barrier()
     return rows
 
@@ -96,7 +99,7 @@ def versions():
             "python": platform.python_version()}
 
 
-def _write_h5(path, cfg, levels, rows, mpi_size):
+def _write_h5(path, cfg, levels, rows, mpi_size, summary=None):
     import h5py
     import numpy as np
     with h5py.File(path, "w") as h5:
@@ -110,6 +113,8 @@ def _write_h5(path, cfg, levels, rows, mpi_size):
         _write_table(h5.create_group("table"), rows)
         for lv, row in zip(levels, rows):
             _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row, np)
+        if summary is not None:
+            verdict.write_h5(h5.create_group("verification"), summary)
 
 
 def _write_provenance(h5, cfg, levels):

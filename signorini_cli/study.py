@@ -7,6 +7,7 @@ from dolfinx import fem
 
 from . import fields, meshes, measure, model, solver
 from .meshes import DIRICHLET
+from . import verification
 
 
 @dataclass
@@ -27,8 +28,10 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None):
     """Solve every level of `cfg`; call on_level(levels_so_far) after each; return the levels.
     `monitor(snes, its, fnorm)`, if given, is called at every Newton iteration (progress)."""
     levels = []
+    verifier = verification.Verifier(cfg, comm)
     for index, n in enumerate(cfg.mesh.refinements):
-        levels.append(solve_level(cfg, index, n, comm, monitor))
+        levels.append(solve_level(cfg, index, n, comm, monitor, verifier))
+        verification.add_rates(levels)
         if on_level is not None:
             on_level(levels)
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
@@ -36,7 +39,7 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None):
     return levels
 
 
-def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None):
+def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None):
     """Build, solve and measure the level with n cells per side."""
     start = time.perf_counter()
     domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
@@ -56,7 +59,10 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None):
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     if cfg.output.fields:
         fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
-    return Level(index, n, domain.h, dofs, eps_value, outcome, errors, elapsed)
+    level = Level(index, n, domain.h, dofs, eps_value, outcome, errors, elapsed)
+    if verifier is not None:  # Γ_C measures, reference errors (issue 4); not part of time_s
+        verifier.measure(level, domain, u_h, forms)
+    return level
 
 
 def dirichlet_condition(V, domain, u_exact):

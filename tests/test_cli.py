@@ -65,3 +65,19 @@ def test_unconverged_level_exit_1(tmp_path):
 def test_output_flag_overrides_dir(tmp_path):
     assert cli.main(["run", write(tmp_path), "--output", str(tmp_path / "elsewhere")]) == cli.EXIT_OK
     assert (tmp_path / "elsewhere" / "t" / "rates.csv").exists()
+
+
+def test_expect_missed_exit_1_with_verdict(tmp_path, capsys):
+    path = write(tmp_path, mesh={"refinements": [4, 8]}, expect={"rates": {"H1": 3.0}})
+    assert cli.main(["run", path]) == cli.EXIT_EXPECTATION_NOT_MET
+    out = capsys.readouterr().out
+    assert "verification: rates fitted over the last 3 levels" in out
+    assert "expect H1 >= 3 - 0.1: NOT MET" in out
+    with open(tmp_path / "out" / "t" / "summary.csv") as f:
+        rows = {(r["kind"], r["name"]): r for r in csv.DictReader(f)}
+    assert rows[("expect", "H1")]["met"] == "false" and rows[("norm", "H1")]["verdict"] == "agrees"
+
+
+def test_expect_met_exit_0(tmp_path):
+    path = write(tmp_path, mesh={"refinements": [4, 8]}, expect={"rates": {"H1": 0.5}})
+    assert cli.main(["run", path]) == cli.EXIT_OK

@@ -106,3 +106,49 @@ def test_to_dict_round_trip(changes):
     resolved = config.to_dict(load(changes))
     assert config.to_dict(config.from_dict(resolved)) == resolved
     assert list(resolved)[:2] == ["study", "description"] and "text" not in resolved
+
+
+def test_verification_defaults_and_expect():
+    cfg = load({"expect": {"rates": {"L2": 2, "H1": 1.0}}})
+    assert cfg.verification == config.Verification(fit_levels=3, tolerance=0.1, measures=None,
+                                                   reference_refinements=1, reference_epsilon="per_level")
+    assert dict(cfg.expect.rates) == {"L2": 2.0, "H1": 1.0} and cfg.expect.tolerance == 0.1
+    assert load({}).expect is None
+    data = load({"problem": {"exact": None, "f": "10"}, "expect": {"rates": {"L2_ref": 2}},
+                 "verification": {"reference_refinements": 2, "reference_epsilon": "fixed",
+                                  "measures": ["diff", "energy"]}})
+    assert data.verification.reference_epsilon == "fixed" and data.verification.measures == ("diff", "energy")
+
+
+DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
+
+
+@pytest.mark.parametrize("changes, message", [
+    pytest.param({"verification": {"fit_levels": 1}}, "verification.fit_levels: must be >= 2, got 1", id="fit"),
+    pytest.param({"verification": {"tolerance": -0.1}}, "verification.tolerance: must be >= 0", id="tolerance"),
+    pytest.param({"verification": {"measures": ["L2_gc", "area"]}},
+                 r"verification.measures\[1\]: 'area' is not one of", id="measure"),
+    pytest.param({"verification": {"measures": "L2_gc"}}, "verification.measures: must be a list",
+                 id="measures-type"),
+    pytest.param({"verification": {"measures": ["diff", "diff"]}}, "verification.measures: lists a measure twice",
+                 id="measure-twice"),
+    pytest.param({"verification": {"reference_epsilon": "fixed"}},
+                 "verification.reference_epsilon: only meaningful without problem.exact", id="ref-eps-exact"),
+    pytest.param(dict(DATA_ONLY, verification={"reference_refinements": 3}),
+                 "verification.reference_refinements: must be <= 2, got 3", id="ref-refinements"),
+    pytest.param(dict(DATA_ONLY, verification={"reference_epsilon": "each"}),
+                 "verification.reference_epsilon: 'each' is not one of per_level, fixed", id="ref-eps"),
+    pytest.param({"verification": {"fit_level": 3}}, "verification.fit_level: unknown key in verification "
+                 r"\(did you mean 'fit_levels'\?\)", id="typo"),
+    pytest.param({"expect": {"rates": {"L3": 2}}}, "expect.rates.L3: not a rate column of a manufactured scene",
+                 id="expect-norm"),
+    pytest.param(dict(DATA_ONLY, expect={"rates": {"L2": 2}}),
+                 r"expect.rates.L2: not a rate column of a data-only scene \(no exact solution\); one of L2_ref",
+                 id="expect-exact-norm-data-only"),
+    pytest.param({"expect": {"rates": {"L2": "two"}}}, "expect.rates.L2: must be a number", id="expect-rate"),
+    pytest.param({"expect": {"rates": {}}}, "expect.rates: must be a mapping of norm to rate", id="expect-empty"),
+    pytest.param({"expect": {"tolerance": 0.1}}, "expect.rates: missing required key", id="expect-no-rates"),
+])
+def test_verification_rejection_names_key(changes, message):
+    with pytest.raises(config.ConfigError, match="^" + message):
+        load(changes)

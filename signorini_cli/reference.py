@@ -1,0 +1,104 @@
+"""Reference solutions for scenes given by their data only: the same problem solved on the mesh one or
+two uniform refinements beyond the finest level, levels moved onto it by an exact (nested) transfer."""
+import logging
+import time
+
+import numpy as np
+import ufl
+from mpi4py import MPI
+
+from dolfinx import fem
+
+from . import measure, meshes, model, solver
+from .meshes import CONTACT, DIRICHLET
+from .transfer import transfer
+
+logger = logging.getLogger(__name__)
+P1_DEGREE = 2  # ∫ of products of P1 functions and their gradients: degree 2 is exact
+
+
+class Reference:
+    """u_ref on the reference mesh, solved once per eps (reference_epsilon: per_level compares each
+    level with u_ref at that level's eps; fixed with u_ref at the law's eps on the reference mesh)."""
+
+    def __init__(self, cfg, comm=MPI.COMM_WORLD):
+        self.cfg, self.comm = cfg, comm
+        self.n = cfg.mesh.refinements[-1] * 2 ** cfg.verification.reference_refinements
+        self.domain = None
+        self.solutions = {}  # eps -> (u_ref, converged)
+
+    def eps_for(self, level_eps):
+        """The eps of the reference a level with eps = level_eps is compared with."""
+        if self.cfg.verification.reference_epsilon == "per_level":
+            return level_eps
+        return self.cfg.epsilon(self.mesh().h)
+
+    def mesh(self):
+        """The reference level's Domain, built on first use."""
+        if self.domain is None:
+            self.domain = meshes.build(self.cfg.mesh, self.cfg.contact, self.n, self.comm)
+            if any(self.n % n for n in self.cfg.mesh.refinements):
+                logger.warning("reference N=%d is not a multiple of every level's N: the transfer to it "
+                               "interpolates instead of being exact", self.n)
+        return self.domain
+
+    def solution(self, eps_value, start):
+        """(u_ref, converged, seconds spent): solved at eps_value from `start` (a level's u_h) moved to
+        the reference mesh, or taken from the cache."""
+        if eps_value in self.solutions:
+            return (*self.solutions[eps_value], 0.0)
+        begin = time.perf_counter()
+        domain = self.mesh()
+        V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
+        u_ref = transfer(start, V)
+        u_ref.name = "u_ref"
+        outcome = solve(self.cfg, domain, u_ref, eps_value)
+        if not outcome.converged:
+            logger.warning("reference N=%d at eps=%.3e did not converge: %s", self.n, eps_value, outcome.reason)
+        self.solutions[eps_value] = (u_ref, outcome.converged)
+        return u_ref, outcome.converged, self.comm.allreduce(time.perf_counter() - begin, op=MPI.MAX)
+
+    def errors(self, u_h, u_ref, eps_value, with_contact):
+        """{'L2_ref', 'H1_ref'} and, with_contact, the Γ_C errors (suffix _ref) of u_h against u_ref
+        at eps_value (the level's eps: the eps its own energy-type error is scaled with)."""
+        domain = self.mesh()
+        moved = transfer(u_h, u_ref.function_space)
+        found = difference_norms(moved, u_ref)
+        if with_contact:
+            ds_c = contact_measure_of(domain)
+            found.update(measure.contact_errors(moved, u_ref, eps_value, self.cfg.alpha, ds_c, found["H1"]))
+        return {f"{name}_ref": value for name, value in found.items()}
+
+
+def solve(cfg, domain, u, eps_value):
+    """Newton on the level's problem with eps = eps_value, from u; u = 0 on Γ_D (data-only scenes)."""
+    V = u.function_space
+    forms = model.forms(cfg, domain, u, fem.Constant(domain.mesh, eps_value))
+    fdim = domain.mesh.topology.dim - 1
+    dofs = fem.locate_dofs_topological(V, fdim, domain.facet_tags.indices[domain.facet_tags.values == DIRICHLET])
+    bcs = [fem.dirichletbc(fem.Function(V), dofs)]
+    newton = solver.NewtonSolver(forms.F, forms.J, u, bcs, solver.petsc_options(cfg.solver, cfg.dimension))
+    outcome = newton.solve()
+    newton.destroy()
+    return outcome
+
+
+def difference_norms(u_h, u):
+    """{'L2': ||u - u_h||_{L2}, 'H1': |u - u_h|_{H1}} for two P1 functions on one mesh (exact quadrature)."""
+    dx = ufl.Measure("dx", domain=u.function_space.mesh, metadata={"quadrature_degree": P1_DEGREE})
+    e = u - u_h
+    return {"L2": np.sqrt(abs(measure.integrate(e**2, dx))),
+            "H1": np.sqrt(abs(measure.integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
+
+
+def successive_differences(u_coarse, u_fine):
+    """{'diff_L2', 'diff_H1'}: ||u_h - u_{h/2}|| with the coarser solution moved onto the finer mesh
+    (exact for nested meshes): rates that need no reference solution."""
+    moved = transfer(u_coarse, u_fine.function_space)
+    return {f"diff_{name}": value for name, value in difference_norms(moved, u_fine).items()}
+
+
+def contact_measure_of(domain):
+    """ds over Γ_C with the error quadrature (the positive parts kink inside facets)."""
+    return ufl.Measure("ds", domain=domain.mesh, subdomain_data=domain.facet_tags,
+                       metadata={"quadrature_degree": measure.ERROR_DEGREE})(CONTACT)

@@ -1,0 +1,67 @@
+"""The new per-level columns: Γ_C errors with rates on a manufactured study, only what is asked for, and
+nothing on Γ_C for a scene without a contact part."""
+import csv
+from types import SimpleNamespace
+
+import h5py
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import dolfinx.mesh
+from dolfinx import fem
+from signorini_cli import meshes, model, results, study, verification
+from signorini_cli.meshes import DIRICHLET
+
+GAMMA_C = ["L2_gc", "rate_L2_gc", "pos_gc", "rate_pos_gc", "pos_gc_scaled", "rate_pos_gc_scaled",
+           "energy_err", "rate_energy_err", "penetration", "contact_measure"]
+
+
+def test_manufactured_study_gamma_c_columns(make_config):
+    cfg = make_config(mesh={"refinements": [8, 16, 32]})
+    levels = study.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    with open(cfg.output_dir / "rates.csv") as f:
+        rows = list(csv.DictReader(f))
+    header = list(rows[0])
+    assert header[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
+    assert header[-len(GAMMA_C):] == GAMMA_C  # after the SPEC and solver columns, in this order
+    assert rows[0]["rate_L2_gc"] == "" and rows[0]["L2_gc"] != ""
+    last = levels[-1].extra
+    # N=16->32 observed L2_gc 1.97, pos_gc_scaled 3.45, energy_err 1.00 (2026-11 run); proven: none,
+    # O(h^{3/2}) (Cor. 3.2 ii), O(h) (Lemma 3.1); 0.1 = pre-asymptotic margin
+    assert last["rate_L2_gc"] >= 1.9
+    assert last["rate_pos_gc_scaled"] >= 1.5 - 0.1 and last["rate_energy_err"] >= 1.0 - 0.1
+    # the energy-type error is the H1 seminorm plus a Γ_C term of higher order
+    assert levels[-1].errors["H1"] < last["energy_err"] < 1.01 * levels[-1].errors["H1"]
+    # u_ex = sin(2 pi x) on y = 0 is positive on (0, 1/2): the discrete contact set converges to it
+    assert last["contact_measure"] == pytest.approx(0.5, abs=1 / 32)
+    assert last["penetration"] == pytest.approx(1.0, abs=0.01)  # max sin = 1, vertex at x = 1/4
+    summary = {r["name"]: r for r in csv.DictReader(open(cfg.output_dir / "summary.csv"))}
+    assert summary["L2"]["verdict"] == "agrees" and summary["L2_gc"]["verdict"] == "not covered"
+    with h5py.File(cfg.output_dir / "study.h5") as h5:
+        assert h5["verification/norm/H1"].attrs["proven_rate"] == 1.0
+        assert h5["table/rate_energy_err"][-1] == pytest.approx(last["rate_energy_err"])
+
+
+def test_only_asked_measures(make_config):
+    cfg = make_config(verification={"measures": ["penetration"]})
+    levels = study.run_study(cfg, comm=MPI.COMM_SELF)
+    assert list(levels[0].extra) == ["penetration"]
+    assert set(levels[0].errors) == {"L2", "H1"}
+
+
+def test_no_contact_part_no_gamma_c_columns(make_config):
+    """A scene whose boundary is all Γ_D (as a gmsh geometry without a contact group would be)."""
+    cfg = make_config(verification={"measures": list(verification.DEFAULT_MEASURES["data"])})
+    domain = meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF)
+    tags = domain.facet_tags
+    all_dirichlet = dolfinx.mesh.meshtags(domain.mesh, 1, tags.indices, np.full_like(tags.values, DIRICHLET))
+    domain = meshes.Domain(domain.mesh, all_dirichlet, domain.h, domain.h_min, 4)
+    u_h = fem.Function(fem.FunctionSpace(domain.mesh, ("Lagrange", 1)))
+    forms = model.forms(cfg, domain, u_h, fem.Constant(domain.mesh, domain.h))
+    level = SimpleNamespace(eps=domain.h, errors={"L2": 1.0, "H1": 1.0}, extra={},
+                            outcome=SimpleNamespace(converged=True))
+    verification.Verifier(cfg, MPI.COMM_SELF).measure(level, domain, u_h, forms)
+    # of all measures only those that need no Γ_C are left (no differences yet on a first level)
+    assert list(level.extra) == ["diff_L2", "rate_diff_L2", "diff_H1", "rate_diff_H1", "energy"]
+    assert level.extra["diff_L2"] is None
