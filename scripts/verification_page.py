@@ -139,7 +139,8 @@ def quantity_lines(case):
              "|---|---|---|---|---|---|---|"]
     for r in rows:
         if not r["order"]:
-            lines.append(f"| {r['name']} | {r['levels']} | - | - | - | - | no order observable |")
+            why = "no order observable" if len(r["levels"].split()) == 3 else "needs three converged levels"
+            lines.append(f"| {r['name']} | {r['levels']} | - | - | - | - | {why} |")
             continue
         order = f"{float(r['order']):.2f}" + (" (oscillatory)" if r["oscillatory"] == "true" else "")
         lines.append(f"| {r['name']} | {r['levels']} | {float(r['value']):.6e} | {order} | "

@@ -174,7 +174,8 @@ def format_summary(summary):
 def _quantity_row(q):
     g = q.estimate
     if g is None:
-        return (q.quantity, "-", "-", "-", "-", "no order observable")
+        why = "no order observable" if len(q.levels) == 3 else "needs three converged levels"
+        return (q.quantity, "-", "-", "-", "-", why)
     finest = f"{g.value:.6e}"
     order = f"{g.order:.2f}" + (" (oscillatory)" if g.oscillatory else "")
     return (q.quantity, finest, order, f"{g.extrapolated:.6e}", f"{100 * g.gci:.3g}%", f"± {g.band:.2e}")

@@ -27,15 +27,16 @@ def test_manufactured_study_gamma_c_columns(make_config):
     assert header[-len(GAMMA_C):] == GAMMA_C  # after the SPEC and solver columns, in this order
     assert rows[0]["rate_L2_gc"] == "" and rows[0]["L2_gc"] != ""
     last = levels[-1].extra
-    # N=16->32 observed L2_gc 1.97, pos_gc_scaled 3.45, energy_err 1.00 (2026-11 run); proven: none,
+    # N=16->32 observed L2_gc 1.97, pos_gc_scaled 3.45, energy_err 0.995 (2026-11 run); proven: none,
     # O(h^{3/2}) (Cor. 3.2 ii), O(h) (Lemma 3.1); 0.1 = pre-asymptotic margin
     assert last["rate_L2_gc"] >= 1.9
     assert last["rate_pos_gc_scaled"] >= 1.5 - 0.1 and last["rate_energy_err"] >= 1.0 - 0.1
     # the energy-type error is the H1 seminorm plus a Γ_C term of higher order
     assert levels[-1].errors["H1"] < last["energy_err"] < 1.01 * levels[-1].errors["H1"]
-    # u_ex = sin(2 pi x) on y = 0 is positive on (0, 1/2): the discrete contact set converges to it
-    assert last["contact_measure"] == pytest.approx(0.5, abs=1 / 32)
-    assert last["penetration"] == pytest.approx(1.0, abs=0.01)  # max sin = 1, vertex at x = 1/4
+    # u_ex = sin(2 pi x) on y = 0 is positive on (0, 1/2), largest 1 at the vertex x = 1/4; N = 32 gives
+    # 0.50008 and 1.0025 (2026-11 run): 1e-3 and 1e-2 leave room for the O(h^2) nodal error, not more
+    assert last["contact_measure"] == pytest.approx(0.5, abs=1e-3)
+    assert last["penetration"] == pytest.approx(1.0, abs=1e-2)
     summary = {r["name"]: r for r in csv.DictReader(open(cfg.output_dir / "summary.csv"))}
     assert summary["L2"]["verdict"] == "agrees" and summary["L2_gc"]["verdict"] == "not covered"
     with h5py.File(cfg.output_dir / "study.h5") as h5:
