@@ -247,9 +247,13 @@ def write(study, cfg=None, digits=3, plots=True, folder=None):
 
 
 def proven_rates(cfg):
-    """{norm column: the rate the paper proves for this study's case}; empty when unknown.
-    The paper's table lives in rates.py (issue 4); until it is there the plots show fitted slopes."""
-    return {}
+    """{norm column: the rate the paper proves for this study's case} (rates.PAPER_RATES through the
+    verdict's lookup); empty when unknown."""
+    if cfg is None:
+        return {}
+    from . import config, verdict
+    found = {norm: verdict.expected(cfg, norm).rate for norm in config.ERROR_NORMS + config.REFERENCE_NORMS}
+    return {norm: rate for norm, rate in found.items() if rate is not None}
 
 
 def title(study, cfg=None):

@@ -69,7 +69,7 @@ def test_output_flag_overrides_dir(tmp_path):
 
 def test_expect_missed_exit_1_with_verdict(tmp_path, capsys):
     path = write(tmp_path, mesh={"refinements": [4, 8]}, expect={"rates": {"H1": 3.0}})
-    assert cli.main(["run", path]) == cli.EXIT_EXPECTATION_NOT_MET
+    assert cli.main(["run", path, "--set", "output.plots=false"]) == cli.EXIT_EXPECTATION_NOT_MET
     out = capsys.readouterr().out
     assert "verification: rates fitted over the last 3 levels" in out
     assert "expect H1 >= 3 - 0.1: NOT MET" in out
@@ -80,4 +80,4 @@ def test_expect_missed_exit_1_with_verdict(tmp_path, capsys):
 
 def test_expect_met_exit_0(tmp_path):
     path = write(tmp_path, mesh={"refinements": [4, 8]}, expect={"rates": {"H1": 0.5}})
-    assert cli.main(["run", path]) == cli.EXIT_OK
+    assert cli.main(["run", path, "--set", "output.plots=false"]) == cli.EXIT_OK

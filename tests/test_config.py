@@ -152,3 +152,15 @@ DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
 def test_verification_rejection_names_key(changes, message):
     with pytest.raises(config.ConfigError, match="^" + message):
         load(changes)
+
+
+@pytest.mark.parametrize("changes", [
+    pytest.param({"expect": {"rates": {"L2": 2.0}, "tolerance": 0.2}, "verification": {"fit_levels": 4}},
+                 id="manufactured"),
+    pytest.param(dict(DATA_ONLY, verification={"reference_epsilon": "fixed", "measures": ["diff"]},
+                      expect={"rates": {"L2_ref": 2.0}}), id="data-only"),
+])
+def test_verification_keys_round_trip(changes):
+    cfg = load(changes)
+    again = config.from_dict(config.to_dict(cfg))
+    assert (again.verification, again.expect) == (cfg.verification, cfg.expect)
