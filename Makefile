@@ -56,3 +56,10 @@ verify: setup
 clean:
 	rm -rf results build *.egg-info .pytest_cache
 	find . -name __pycache__ -prune -exec rm -rf {} +
+
+# The Signorini limit (docs/limit.md): run configs/limit/, then write the page and its plot from the runs.
+LIMIT_CONFIGS := $(sort $(wildcard configs/limit/*.yaml))
+.PHONY: limit
+limit: setup
+	@set -e; for c in $(LIMIT_CONFIGS); do echo "== $$c"; $(SIGNORINI) run $$c --force; done
+	$(PY) -m signorini_cli.limit_docs $(LIMIT_CONFIGS) --out docs/limit.md

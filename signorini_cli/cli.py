@@ -71,6 +71,9 @@ def run(cfg, quiet=False, verbose=False):
     from . import progress, report, results, study, verdict
     comm = MPI.COMM_WORLD
     cfg = with_monitors(cfg) if verbose else cfg
+    if cfg.study_type in ("epsilon_sweep", "total_error"):  # own tables (docs/limit.md)
+        from . import limit
+        return EXIT_OK if limit.run(cfg, comm, quiet=quiet) else EXIT_NOT_CONVERGED
     shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet)
 
     def on_level(done):
@@ -107,6 +110,8 @@ def _load(args):
 
 def _check_output(cfg, force):
     if (cfg.output_dir / "rates.csv").exists() and not force:
+        raise ConfigError("output.dir", f"{cfg.output_dir} already holds results; use --force to overwrite")
+    if (cfg.output_dir / "study.h5").exists() and not force:  # also the studies without a rates.csv
         raise ConfigError("output.dir", f"{cfg.output_dir} already holds results; use --force to overwrite")
 
 

@@ -27,6 +27,8 @@ MAX_REFERENCE_REFINEMENTS = 2
 # rate columns an `expect:` block may name: exact-solution errors, errors against a reference, differences
 ERROR_NORMS = ("L2", "H1", "L2_gc", "pos_gc", "pos_gc_scaled", "energy_err")
 REFERENCE_NORMS = tuple(f"{norm}_ref" for norm in ERROR_NORMS) + ("diff_L2", "diff_H1")
+STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error")  # the last three: docs/limit.md
+EXACT_SOLVES = ("compliance", "signorini")
 
 
 class ConfigError(ValueError):
@@ -62,6 +64,7 @@ class Problem:
     exact: expressions.Expression = None
     f: expressions.Expression = None
     g: expressions.Expression = None
+    exact_solves: str = "compliance"  # signorini: `exact` is a Signorini solution u_S, g = 0 (docs/limit.md)
 
 
 @dataclass(frozen=True)
@@ -99,6 +102,15 @@ class Expect:
     tolerance: float = 0.1
 
 
+class Limit:
+    """The ε → 0 studies (docs/limit.md): the α values, the ε of a sweep, the ε = θ h^p of a total-error study."""
+    alpha: tuple = (2.0,)
+    epsilon: tuple = ()    # epsilon_sweep: decreasing ε values
+    theta: float = 1.0     # total_error: ε = θ h^p
+    exponent: tuple = ()   # total_error: the p values
+    fit_last: int = 3      # the fitted rate uses this many finest points
+
+
 @dataclass(frozen=True)
 class Output:
     dir: str = "results"
@@ -122,6 +134,8 @@ class Config:
     description: str = ""
     verification: Verification = Verification()
     expect: Expect = None
+    study_type: str = "refinement"
+    limit: Limit = None
     text: str = field(default="", repr=False, compare=False)  # the YAML as given, for the record
 
     @property
@@ -168,7 +182,8 @@ def from_dict(raw):
     """Validate a raw mapping into a Config."""
     _keys(raw, "", required=("study", "mesh", "contact"),
           optional=("dimension", "alpha", "epsilon", "problem", "positive_part", "solver",
-                    "output", "description", "verification", "expect"))
+                    "output", "description", "verification", "expect",
+                    "study_type", "limit"))
     study = _string(raw["study"], "study")
     if "/" in study or study in (".", ".."):
         raise ConfigError("study", f"must be a plain folder name, got {study!r}")
@@ -181,7 +196,7 @@ def from_dict(raw):
     alpha = _number(raw.get("alpha", 2.0), "alpha", low=1.0)
     if dim == 3 and alpha > MAX_ALPHA_3D:
         raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g}")
-    return Config(study=study, dimension=dim, alpha=alpha,
+    base = Config(study=study, dimension=dim, alpha=alpha,
                   epsilon=_epsilon(raw.get("epsilon", {}), "epsilon"),
                   mesh=mesh, contact=_choice(raw["contact"], "contact", FACES[dim]),
                   problem=_problem(raw.get("problem"), "problem", dim),
@@ -191,6 +206,7 @@ def from_dict(raw):
                   verification=_verification(raw.get("verification", {}), "verification", raw.get("problem")),
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=_string(raw.get("description", ""), "description", empty=True))
+    return _study_type(base, raw)
 
 
 def _epsilon(raw, path):
@@ -219,7 +235,7 @@ def _mesh(raw, path):
 def _problem(raw, path, dim):
     if raw is None:
         raise ConfigError(path, "missing: give problem.exact (manufactured) or problem.f")
-    _keys(raw, path, optional=("exact", "f", "g"))
+    _keys(raw, path, optional=("exact", "f", "g", "exact_solves"))
     coords = COORDINATES[dim]
     exact, f, g = (_expression(raw[k], f"{path}.{k}", coords + ("eps",)) if k in raw else None
                    for k in ("exact", "f", "g"))
@@ -227,7 +243,7 @@ def _problem(raw, path, dim):
         raise ConfigError(path, "give exact (a manufactured solution) or f (data only)")
     if exact is not None and (f is not None or g is not None):
         raise ConfigError(path, "exact determines f and g; give exact alone, or f (and g) alone")
-    return Problem(exact, f, g)
+    return Problem(exact, f, g, _exact_solves(raw, path, exact))
 
 
 def _positive_part(raw, path):
@@ -304,6 +320,98 @@ def _expect(raw, path, problem):
             raise ConfigError(f"{path}.rates.{norm}", f"not a rate column of {scene}; one of {', '.join(norms)}")
     return Expect(rates=tuple((norm, _number(rate, f"{path}.rates.{norm}")) for norm, rate in rates.items()),
                   tolerance=_number(raw.get("tolerance", 0.1), f"{path}.tolerance", low=0.0))
+
+
+# --- the ε → 0 studies (docs/limit.md) -----------------------------------------------------------
+
+UNUSED = {"signorini": {"alpha": "", "epsilon": "", "positive_part": "", "limit": ""},
+          "epsilon_sweep": {"alpha": " (give the α values as limit.alpha)",
+                            "epsilon": " (the ε values are limit.epsilon)"},
+          "total_error": {"alpha": " (give the α values as limit.alpha)",
+                          "epsilon": " (ε = θ h^p from limit.theta and limit.exponent)"}}
+
+
+def _exact_solves(raw, path, exact):
+    """Which problem `exact` solves: the compliance model (default) or the Signorini problem."""
+    if "exact_solves" not in raw:
+        return "compliance"
+    solves = _choice(raw["exact_solves"], f"{path}.exact_solves", EXACT_SOLVES)
+    if exact is None and solves == "signorini":
+        raise ConfigError(f"{path}.exact_solves", "only meaningful with problem.exact")
+    if solves == "signorini" and "eps" in exact.names:
+        raise ConfigError(f"{path}.exact", "a Signorini solution cannot depend on eps")
+    return solves
+
+
+def _study_type(cfg, raw):
+    """Validate study_type, and for the ε → 0 studies their problem and limit block."""
+    kind = _choice(raw.get("study_type", "refinement"), "study_type", STUDY_TYPES)
+    if kind == "refinement":
+        if "limit" in raw:
+            raise ConfigError("limit", "only meaningful with study_type epsilon_sweep or total_error")
+        return cfg
+    for key, hint in UNUSED[kind].items():
+        if key in raw:
+            raise ConfigError(key, f"not used by study_type {kind}{hint}")
+    _signorini_problem(cfg.problem, kind)
+    if kind != "total_error" and cfg.output.fields:
+        raise ConfigError("output.fields", f"not written by study_type {kind} (refinement and total_error only)")
+    limit = None if kind == "signorini" else _limit(raw.get("limit"), "limit", kind, cfg.dimension)
+    return dataclasses.replace(cfg, study_type=kind, limit=limit)
+
+
+def _signorini_problem(problem, kind):
+    """The ε → 0 studies need the Signorini problem: f (and u_S on Γ_D), contact data g = 0."""
+    if problem.exact is not None and problem.exact_solves != "signorini":
+        raise ConfigError("problem.exact_solves", f"study_type {kind} needs a Signorini solution: "
+                                                  "set exact_solves: signorini, or give f alone")
+    if problem.g is not None:
+        raise ConfigError("problem.g", f"study_type {kind} needs g = 0: the ε → 0 limit of "
+                                       "ε∂_n u + [u]_+^α = g is a Signorini problem only then")
+    if kind == "total_error" and problem.exact is None:
+        raise ConfigError("problem.exact", "study_type total_error measures u_S − u_h: give u_S")
+
+
+def _limit(raw, path, kind, dim):
+    if raw is None:
+        raise ConfigError(path, f"missing: study_type {kind} needs a limit block")
+    sweep = kind == "epsilon_sweep"
+    _keys(raw, path, required=("epsilon",) if sweep else ("exponent",),
+          optional=("alpha", "fit_last") + (() if sweep else ("theta",)))
+    alpha = _numbers(raw.get("alpha", [2.0]), f"{path}.alpha", low=1.0)
+    if dim == 3 and max(alpha) > MAX_ALPHA_3D:
+        raise ConfigError(f"{path}.alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {max(alpha):g}")
+    fit_last = _integer(raw.get("fit_last", 3), f"{path}.fit_last", low=2)
+    if sweep:
+        return Limit(alpha=alpha, epsilon=_epsilons(raw["epsilon"], f"{path}.epsilon"), fit_last=fit_last)
+    return Limit(alpha=alpha, theta=_number(raw.get("theta", 1.0), f"{path}.theta", positive=True),
+                 exponent=_numbers(raw["exponent"], f"{path}.exponent", positive=True), fit_last=fit_last)
+
+
+def _epsilons(raw, path):
+    """The ε of a sweep, decreasing: a list, or a geometric range {start, stop, count}."""
+    if isinstance(raw, dict):
+        _keys(raw, path, required=("start", "stop", "count"))
+        start = _number(raw["start"], f"{path}.start", positive=True)
+        stop = _number(raw["stop"], f"{path}.stop", positive=True)
+        count = _integer(raw["count"], f"{path}.count", low=2)
+        if stop >= start:
+            raise ConfigError(path, f"start must be larger than stop (ε decreases), got {start:g} and {stop:g}")
+        return tuple(start * (stop / start) ** (k / (count - 1)) for k in range(count))
+    values = _numbers(raw, path, positive=True)
+    if len(values) < 2 or any(b >= a for a, b in zip(values, values[1:])):
+        raise ConfigError(path, f"must be at least two decreasing values (each ε starts from the previous "
+                                f"solution), got {list(values)}")
+    return values
+
+
+def _numbers(raw, path, low=None, positive=False):
+    """A non-empty list of numbers; a single number is a list of one."""
+    values = raw if isinstance(raw, list) else [raw]
+    if not values:
+        raise ConfigError(path, "must be a non-empty list of numbers")
+    return tuple(_number(v, f"{path}[{i}]" if isinstance(raw, list) else path, low=low, positive=positive)
+                 for i, v in enumerate(values))
 
 
 # --- small validators ---------------------------------------------------------------------------
@@ -393,7 +501,17 @@ def to_dict(cfg):
             out["verification"].pop(key)
     if cfg.expect is not None:
         out["expect"]["rates"] = dict(cfg.expect.rates)
+    _limit_to_dict(cfg, out)
     return out
+
+
+def _limit_to_dict(cfg, out):
+    """Leave out what the ε → 0 study types reject: unused top-level keys, the other type's limit keys."""
+    for key in UNUSED.get(cfg.study_type, {}):
+        out.pop(key, None)
+    if cfg.limit is not None:
+        for key in (("theta", "exponent") if cfg.study_type == "epsilon_sweep" else ("epsilon",)):
+            out["limit"].pop(key)
 
 
 def _plain(value):

@@ -42,6 +42,8 @@ def exact_solution(cfg, msh, eps):
 def data(cfg, msh, eps, u_exact, n):
     """(f, g): from u_ex (f = -Δu_ex, g = eps ∂_n u_ex + [u_ex]_+^alpha) or from the config."""
     if u_exact is not None:
+        if cfg.problem.exact_solves == "signorini":  # u_S: contact data g = 0, f and u_D only (docs/limit.md)
+            return -ufl.div(ufl.grad(u_exact)), 0.0
         exact_pp = type(cfg.positive_part)()  # g uses the exact positive part: u_ex solves the exact model
         g = eps * ufl.dot(ufl.grad(u_exact), n) + compliance(u_exact, cfg.alpha, exact_pp, None, eps)
         return -ufl.div(ufl.grad(u_exact)), g

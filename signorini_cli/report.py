@@ -187,6 +187,10 @@ def _load_h5(path):
     import h5py
     with h5py.File(path, "r") as h5:
         attrs = {key: _python(value) for key, value in h5.attrs.items()}
+        if attrs.get("study_type") in ("epsilon_sweep", "total_error"):  # docs/limit.md: no rate table
+            from .config import ConfigError
+            raise ConfigError("study_type", f"an {attrs['study_type']} study has no rate table to report; "
+                                            "its tables are the CSV files next to study.h5 (README: Results)")
         table = h5.get("table")
         columns = _columns(table) if table is not None else []
         groups = sorted(name for name in h5 if name.startswith("level_"))
@@ -260,6 +264,8 @@ def title(study, cfg=None):
     """A one-line plot title: dimension, alpha and the eps law, or the study name alone."""
     if cfg is None:
         return study.name
+    if cfg.study_type == "signorini":  # the variational inequality: no alpha, no eps (docs/limit.md)
+        return rf"{study.name}: $d = {cfg.dimension}$, Signorini variational inequality ($\varepsilon = 0$)"
     law = {"theta_h": r"\theta h", "theta_sqrt_h": r"\theta\sqrt{h}", "constant": r"\theta",
            "power": rf"\theta h^{{{cfg.epsilon.exponent:g}}}"}[cfg.epsilon.law]
     return (rf"{study.name}: $d = {cfg.dimension}$, $\alpha = {cfg.alpha:g}$, "

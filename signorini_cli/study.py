@@ -27,6 +27,9 @@ class Level:
 def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None):
     """Solve every level of `cfg`; call on_level(levels_so_far) after each; return the levels.
     `monitor(snes, its, fnorm)`, if given, is called at every Newton iteration (progress)."""
+    if cfg.study_type != "refinement":  # the Signorini limit studies (docs/limit.md)
+        from . import limit
+        return limit.run_study(cfg, on_level, comm, monitor)
     levels = []
     verifier = verification.Verifier(cfg, comm)
     for index, n in enumerate(cfg.mesh.refinements):

@@ -43,3 +43,6 @@ def make_config(tmp_path):
         raw = merge(BASE, {"output": {"dir": str(tmp_path / "results")}})
         return config.loads(yaml.safe_dump(merge(raw, changes)))
     return make
+
+# The manufactured Signorini solution of docs/signorini-solution.md (contact x < 1/2, free x > 1/2 on y = 0)
+U_SIGNORINI = "y*(abs(x-0.5)-x+0.5)**3 - (abs(x-0.5)+x-0.5)**3*(1-y**2)"

@@ -1,4 +1,6 @@
 """Config validation: defaults, the epsilon laws, and rejections that name their key."""
+from pathlib import Path
+
 import pytest
 import yaml
 
@@ -164,3 +166,69 @@ def test_verification_keys_round_trip(changes):
     cfg = load(changes)
     again = config.from_dict(config.to_dict(cfg))
     assert (again.verification, again.expect) == (cfg.verification, cfg.expect)
+
+
+SIGNORINI_PROBLEM = {"exact": "-x*y", "exact_solves": "signorini"}
+SWEEP = {"study_type": "epsilon_sweep", "alpha": None, "epsilon": None, "problem": SIGNORINI_PROBLEM,
+         "limit": {"alpha": [1, 2], "epsilon": {"start": 1.0, "stop": 1e-4, "count": 5}}}
+
+
+def load_limit(changes):
+    return config.loads(yaml.safe_dump(merge(merge(BASE, SWEEP), changes)))
+
+
+def test_limit_sweep_geometric_range():
+    cfg = load_limit({})
+    assert cfg.study_type == "epsilon_sweep" and cfg.limit.alpha == (1.0, 2.0)
+    assert cfg.limit.epsilon == pytest.approx((1.0, 1e-1, 1e-2, 1e-3, 1e-4))
+    assert load({}).study_type == "refinement" and load({}).limit is None
+
+
+def test_limit_total_error_defaults():
+    cfg = load_limit({"study_type": "total_error", "limit": {"alpha": None, "epsilon": None, "exponent": [1, 2]}})
+    assert cfg.limit.alpha == (2.0,) and cfg.limit.theta == 1.0 and cfg.limit.exponent == (1.0, 2.0)
+    assert load({"problem": SIGNORINI_PROBLEM}).problem.exact_solves == "signorini"  # a refinement study too
+
+
+@pytest.mark.parametrize("changes, message", [
+    pytest.param({"study_type": "sweep"}, "study_type: 'sweep' is not one of refinement, signorini", id="type"),
+    pytest.param({"study_type": None}, "limit: only meaningful with study_type", id="limit-refinement"),
+    pytest.param({"alpha": 2}, r"alpha: not used by study_type epsilon_sweep \(give the α values as limit.alpha",
+                 id="alpha-sweep"),
+    pytest.param({"problem": {"exact_solves": None}}, "problem.exact_solves: study_type epsilon_sweep needs a "
+                                                      "Signorini solution", id="compliance-exact"),
+    pytest.param({"problem": {"exact": None, "exact_solves": None, "f": "1", "g": "1"}}, "problem.g: study_type "
+                 "epsilon_sweep needs g = 0", id="g"),
+    pytest.param({"problem": {"exact": "eps*x"}}, "problem.exact: a Signorini solution cannot depend on eps",
+                 id="eps-in-u_S"),
+    pytest.param({"limit": None}, "limit: missing: study_type epsilon_sweep needs a limit block", id="no-limit"),
+    pytest.param({"limit": {"epsilon": [1e-2, 1e-1]}}, r"limit.epsilon: must be at least two decreasing",
+                 id="increasing"),
+    pytest.param({"limit": {"epsilon": {"start": 1e-3, "stop": 1.0, "count": 3}}},
+                 "limit.epsilon: start must be larger than stop", id="range-up"),
+    pytest.param({"limit": {"epsilon": {"count": None}}}, "limit.epsilon.count: missing", id="count"),
+    pytest.param({"limit": {"alpha": [1, 0.5]}}, r"limit.alpha\[1\]: must be >= 1, got 0.5", id="alpha-low"),
+    pytest.param({"limit": {"exponent": [1]}}, "limit.exponent: unknown key in limit", id="exponent-in-sweep"),
+    pytest.param({"study_type": "total_error", "limit": {"epsilon": None, "exponent": [0]}},
+                 r"limit.exponent\[0\]: must be > 0",
+                 id="exponent"),
+    pytest.param({"study_type": "total_error", "problem": {"exact": None, "exact_solves": None, "f": "1"},
+                  "limit": {"epsilon": None, "exponent": [1]}}, "problem.exact: study_type total_error measures",
+                 id="total-needs-exact"),
+    pytest.param({"study_type": "signorini", "limit": None, "positive_part": "smooth"},
+                 "positive_part: not used by study_type signorini", id="signorini-positive-part"),
+])
+def test_limit_rejection_names_key(changes, message):
+    with pytest.raises(config.ConfigError, match="^" + message):
+        load_limit(changes)
+
+
+@pytest.mark.parametrize("name", ["signorini", "sweep", "total"])
+def test_limit_to_dict_round_trip(name):
+    resolved = config.to_dict(config.load(Path(__file__).resolve().parent.parent / "configs/limit" / f"{name}.yaml"))
+    assert config.to_dict(config.from_dict(resolved)) == resolved  # `signorini check` prints a valid config
+
+
+def test_limit_fields_only_for_refinement_levels():
+    with pytest.raises(config.ConfigError, match="^output.fields: not written by study_type epsilon_sweep"):
+        load_limit({"output": {"fields": True}})
