@@ -102,6 +102,7 @@ class Expect:
     tolerance: float = 0.1
 
 
+@dataclass(frozen=True)
 class Limit:
     """The ε → 0 studies (docs/limit.md): the α values, the ε of a sweep, the ε = θ h^p of a total-error study."""
     alpha: tuple = (2.0,)
@@ -326,9 +327,10 @@ def _expect(raw, path, problem):
 
 UNUSED = {"signorini": {"alpha": "", "epsilon": "", "positive_part": "", "limit": ""},
           "epsilon_sweep": {"alpha": " (give the α values as limit.alpha)",
-                            "epsilon": " (the ε values are limit.epsilon)"},
+                            "epsilon": " (the ε values are limit.epsilon)", "verification": "", "expect": ""},
           "total_error": {"alpha": " (give the α values as limit.alpha)",
-                          "epsilon": " (ε = θ h^p from limit.theta and limit.exponent)"}}
+                          "epsilon": " (ε = θ h^p from limit.theta and limit.exponent)",
+                          "expect": " (the sub-studies differ: no single rate to expect)"}}
 
 
 def _exact_solves(raw, path, exact):

@@ -185,11 +185,12 @@ def fitted_table(sweep, last):
     `last` smallest converged ε, for every measure."""
     rows = []
     for group in _groups(sweep.points):
+        eps, ok = [p.eps for p in group], [p.outcome.converged for p in group]
         used = [p for p in group if p.outcome.converged][-last:]
         row = {"N": group[0].n, "h": group[0].h, "alpha": group[0].alpha, "points": len(used),
                "eps_max": used[0].eps if used else None, "eps_min": used[-1].eps if used else None}
         for m in MEASURES:
-            row[f"fit_{m}"] = slope([p.eps for p in used], [p.differences[m] for p in used])
+            row[f"fit_{m}"] = rates.fitted(eps, [p.differences[m] for p in group], ok, last)
         rows.append(row)
     return rows
 
@@ -202,7 +203,6 @@ def total_table(total, last):
         table = results.table(levels) if levels else []
         finest = table[-1] if table else {}
         vi_study = sub.study_type == "signorini"
-        used = [lv for lv in levels if lv.outcome.converged][-last:]
         row = {"study": name, "solver": "signorini" if vi_study else "compliance",
                "alpha": None if vi_study else sub.alpha, "p": None if vi_study else sub.epsilon.exponent,
                "levels": len(levels), "N": finest.get("N"), "h": finest.get("h"), "epsilon": finest.get("epsilon"),
@@ -210,18 +210,10 @@ def total_table(total, last):
         for norm in ("L2", "H1"):
             row[norm] = finest.get(norm)
             row[f"rate_{norm}"] = finest.get(f"rate_{norm}")
-            row[f"fit_{norm}"] = slope([lv.h for lv in used], [lv.errors.get(norm) for lv in used])
+            row[f"fit_{norm}"] = rates.fitted([lv.h for lv in levels], [lv.errors.get(norm) for lv in levels],
+                                              [lv.outcome.converged for lv in levels], last)
         rows.append(row)
     return rows
-
-
-def slope(x, y):
-    """Least-squares slope of log y against log x (None with fewer than two usable points)."""
-    pairs = [(a, b) for a, b in zip(x, y) if b is not None and b > 0]
-    if len(pairs) < 2:
-        return None
-    a, b = np.log(np.array(pairs)).T
-    return float(np.polyfit(a, b, 1)[0])
 
 
 def _groups(points):

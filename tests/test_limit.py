@@ -139,8 +139,3 @@ def test_total_error_writes_spec_tables(make_config):
     assert summary["signorini"]["epsilon"] == "0.0" and summary["signorini"]["alpha"] == ""
     assert float(summary["alpha2-p2"]["epsilon"]) == pytest.approx(float(h[-1]) ** 2)
 
-
-def test_slope_recovers_power_law():
-    eps = [1e-2, 1e-3, 1e-4]
-    assert limit.slope(eps, [3 * e ** 0.5 for e in eps]) == pytest.approx(0.5)
-    assert limit.slope([1.0], [1.0]) is None and limit.slope(eps, [None, 1.0, 0.0]) is None
