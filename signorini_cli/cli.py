@@ -1,4 +1,4 @@
-"""Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force]`;
+"""Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force] [--resume]`;
 check, list, report and compare."""
 import argparse
 import dataclasses
@@ -7,6 +7,7 @@ import sys
 
 import yaml
 
+from . import guard
 from .config import ConfigError
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
@@ -21,7 +22,11 @@ def build_parser():
     run.add_argument("--output", help="results folder (overrides output.dir)")
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a config key, e.g. --set epsilon.theta=10 (repeatable)")
-    run.add_argument("--force", action="store_true", help="overwrite existing results of this study")
+    run.add_argument("--force", action="store_true",
+                     help="overwrite existing results of this study; run even when the finest level looks too "
+                          "big for the memory")
+    run.add_argument("--resume", action="store_true", help="continue an interrupted study from its first "
+                                                           "unfinished level (the config must be unchanged)")
     noise = run.add_mutually_exclusive_group()
     noise.add_argument("--quiet", action="store_true", help="print nothing but errors (results still written)")
     noise.add_argument("--verbose", action="store_true", help="also PETSc's SNES and KSP monitors")
@@ -55,31 +60,41 @@ def main(argv=None):
     setup_logging()
     if args.command != "run":
         from . import commands
-        return commands.COMMANDS[args.command](args)
+        return guard.supervise(lambda: commands.COMMANDS[args.command](args))
+    return guard.supervise(lambda: _run_command(args))  # signals, and faults on one rank of several
+
+
+def _run_command(args):
     try:
         cfg = _load(args)
-        _check_output(cfg, args.force)
+        _check_output(cfg, args.force or args.resume)
+        done = _prepare(cfg, args)
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return _fail(args.config, err)
-    return run(cfg, quiet=args.quiet, verbose=args.verbose)
+    return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
 
 
-def run(cfg, quiet=False, verbose=False):
-    """Run the study, writing results after each level, with progress, the table, tables and plots
-    on rank 0."""
+def run(cfg, quiet=False, verbose=False, done=()):
+    """Run the study (after the levels `done`), writing results and status after each level, with
+    progress, the table, tables and plots on rank 0."""
     from mpi4py import MPI
     from . import progress, report, results, study, verdict
     comm = MPI.COMM_WORLD
-    cfg = with_monitors(cfg) if verbose else cfg
+    run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
     if cfg.study_type in ("epsilon_sweep", "total_error"):  # own tables (docs/limit.md)
         from . import limit
-        return EXIT_OK if limit.run(cfg, comm, quiet=quiet) else EXIT_NOT_CONVERGED
+        return EXIT_OK if limit.run(run_cfg, comm, quiet=quiet) else EXIT_NOT_CONVERGED
     shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet)
+    shown.level = len(done)  # a resumed study starts further on
+    if done and comm.rank == 0 and not quiet:
+        print(f"study {cfg.study}: resuming after level {done[-1].index}")
 
-    def on_level(done):
-        shown.level_done(results.write(cfg, done))
+    def on_level(levels):
+        shown.level_done(watch.level_done(levels))
 
-    levels = study.run_study(cfg, on_level=on_level, monitor=None if verbose or quiet else shown.monitor)
+    with guard.Watch(cfg, done, comm) as watch:
+        levels = study.run_study(run_cfg, on_level=on_level, comm=comm,
+                                 monitor=None if verbose or quiet else shown.monitor, done=done)
     rows = results.table(levels)
     summary = verdict.summarize(cfg, levels)
     if comm.rank == 0:
@@ -108,17 +123,28 @@ def _load(args):
     return config.load(args.config, overrides)
 
 
+def _prepare(cfg, args):
+    """The finished levels to continue from (--resume), once the finest level fits in memory."""
+    from mpi4py import MPI
+    from . import resources, resume
+    if not args.force:
+        resources.check_memory(cfg, MPI.COMM_WORLD)
+    if args.resume and cfg.study_type != "refinement":
+        raise ConfigError("--resume", f"study_type {cfg.study_type} runs from the start; use --force")
+    return resume.finished_levels(cfg, MPI.COMM_WORLD) if args.resume else []
+
+
 def _check_output(cfg, force):
-    if (cfg.output_dir / "rates.csv").exists() and not force:
-        raise ConfigError("output.dir", f"{cfg.output_dir} already holds results; use --force to overwrite")
-    if (cfg.output_dir / "study.h5").exists() and not force:  # also the studies without a rates.csv
-        raise ConfigError("output.dir", f"{cfg.output_dir} already holds results; use --force to overwrite")
+    if any((cfg.output_dir / name).exists() for name in ("rates.csv", "study.h5")) and not force:
+        raise ConfigError("output.dir", f"{cfg.output_dir} already holds results; use --resume to continue "
+                                        "them or --force to overwrite")  # study.h5: also studies without rates.csv
 
 
 def _fail(source, err):
     from mpi4py import MPI
     if MPI.COMM_WORLD.rank == 0:
         message = _yaml_message(err) if isinstance(err, yaml.YAMLError) else str(err)
+        message = " ".join(message.split("\n"))  # one line, always
         print(f"signorini: error: {source}: {message}", file=sys.stderr)
     return EXIT_BAD_INPUT
 
@@ -126,7 +152,10 @@ def _fail(source, err):
 def _yaml_message(err):
     mark = getattr(err, "problem_mark", None)
     where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-    return f"YAML syntax error: {where}{getattr(err, 'problem', None) or err}"
+    context, start = getattr(err, "context", None), getattr(err, "context_mark", None)
+    # PyYAML notices an unclosed bracket or quote where the next token is; say where it was opened
+    opened = f" ({context} at line {start.line + 1}, column {start.column + 1})" if context and start else ""
+    return f"YAML syntax error: {where}{getattr(err, 'problem', None) or err}{opened}"
 
 
 def setup_logging(level=logging.WARNING):

@@ -1,7 +1,10 @@
 """Study configuration: YAML -> validated, frozen dataclasses. Every error names its key path."""
 import dataclasses
 import difflib
+import hashlib
+import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -148,13 +151,18 @@ class Config:
 
 def load(path, overrides=()):
     """Read a YAML config file, apply `KEY=VALUE` overrides, validate."""
-    text = Path(path).read_text()
+    data = Path(path).read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = data.count(b"\n", 0, err.start) + 1
+        raise ConfigError("", f"not a UTF-8 text file (byte 0x{data[err.start]:02x} on line {line})") from None
     return loads(text, overrides)
 
 
 def loads(text, overrides=()):
     """Validate YAML text (after overrides) into a Config."""
-    raw = yaml.safe_load(text)
+    raw = yaml_load(text)
     if not isinstance(raw, dict):
         raise ConfigError("", "the config must be a YAML mapping of keys to values")
     for item in overrides:
@@ -176,7 +184,11 @@ def apply_override(raw, item):
                 raise ConfigError(".".join(parts[:i + 1]), "is not a mapping, cannot set a sub-key")
             child = node[part] = {}
         node = child
-    node[parts[-1]] = yaml.safe_load(value)
+    try:
+        node[parts[-1]] = yaml_load(value)
+    except yaml.YAMLError as err:
+        problem = getattr(err, "problem", None) or err
+        raise ConfigError(f"--set {key.strip()}", f"{value!r} is not a YAML value: {problem}") from None
 
 
 def from_dict(raw):
@@ -514,6 +526,60 @@ def _limit_to_dict(cfg, out):
     if cfg.limit is not None:
         for key in (("theta", "exponent") if cfg.study_type == "epsilon_sweep" else ("epsilon",)):
             out["limit"].pop(key)
+
+
+# --- YAML reading ----------------------------------------------------------------------------------
+
+class _Loader(yaml.SafeLoader):
+    """Safe YAML that rejects duplicate keys (PyYAML keeps the last one silently) and reads 1e-8
+    as a number, as YAML 1.2 does (PyYAML's YAML 1.1 reads it as a string)."""
+
+    def construct_mapping(self, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            if isinstance(key_node, yaml.ScalarNode) and key_node.tag != "tag:yaml.org,2002:merge":
+                if key_node.value in seen:
+                    raise yaml.constructor.ConstructorError(
+                        "while constructing a mapping", node.start_mark,
+                        f"found duplicate key {key_node.value!r}", key_node.start_mark)
+                seen.add(key_node.value)
+        return super().construct_mapping(node, deep=deep)
+
+
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"), list("-+0123456789."))
+
+
+def yaml_load(text):
+    """YAML text -> Python data (safe: plain data only). Bad characters and excessive nesting are
+    reported as YAML errors with a line and column, never as Python exceptions."""
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except yaml.reader.ReaderError as err:
+        line = text.count("\n", 0, err.position)
+        column = err.position - (text.rfind("\n", 0, err.position) + 1)
+        character = f"#x{err.character:04x}" if isinstance(err.character, int) else repr(err.character)
+        mark = yaml.Mark("config", err.position, line, column, None, None)
+        raise yaml.MarkedYAMLError(problem=f"unacceptable character {character}: {err.reason}",
+                                   problem_mark=mark) from None
+    except RecursionError:
+        raise ConfigError("", "YAML nested too deeply") from None
+
+
+# --- the config hash (resume) ----------------------------------------------------------------------
+
+NOT_HASHED = ("text", "output", "description")  # where results go and comments do not change them
+
+
+def canonical(cfg):
+    """The validated settings that determine a study's numbers, as plain JSON-able data."""
+    return {name: value for name, value in _plain(cfg).items() if name not in NOT_HASHED}
+
+
+def fingerprint(cfg):
+    """sha256 of canonical(cfg): equal for configs that compute the same study."""
+    return hashlib.sha256(json.dumps(canonical(cfg), sort_keys=True, default=str).encode()).hexdigest()
 
 
 def _plain(value):

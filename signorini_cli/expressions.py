@@ -5,12 +5,23 @@ from dataclasses import dataclass
 
 FUNCTIONS = ("sin", "cos", "exp", "log", "sqrt", "abs", "tanh")
 CONSTANTS = {"pi": math.pi, "e": math.e}
-MAX_EXPONENT = 100  # a literal power above this is a typo or an attack, not a solution
+MAX_EXPONENT = 100  # a constant power above this is a typo or an attack, not a solution
 MAX_LENGTH = 2000
 MAX_DEPTH = 60
 
 _BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 _UNARY = {ast.UAdd: "+", ast.USub: "-"}
+# what a rejected construct is called in the message (the AST class name otherwise)
+_FORBIDDEN = {ast.Attribute: "attribute access is", ast.Subscript: "subscripts are", ast.Lambda: "lambdas are",
+              ast.ListComp: "comprehensions are", ast.SetComp: "comprehensions are",
+              ast.DictComp: "comprehensions are", ast.GeneratorExp: "comprehensions are",
+              ast.Compare: "comparisons are", ast.BoolOp: "and/or are", ast.IfExp: "if/else is",
+              ast.JoinedStr: "f-strings are", ast.NamedExpr: "assignments (:=) are", ast.List: "lists are",
+              ast.Tuple: "tuples are", ast.Set: "sets are", ast.Dict: "dicts are", ast.Await: "await is"}
+_OPERATORS = {ast.Mod: "%", ast.FloorDiv: "//", ast.MatMult: "@", ast.LShift: "<<", ast.RShift: ">>",
+              ast.BitAnd: "&", ast.BitOr: "|", ast.BitXor: "^", ast.Invert: "~", ast.Not: "not"}
+_MATH = {"sin": math.sin, "cos": math.cos, "exp": math.exp, "log": math.log, "sqrt": math.sqrt,
+         "abs": abs, "tanh": math.tanh}  # folds constant sub-expressions at parse time
 
 
 class ExpressionError(ValueError):
@@ -33,62 +44,123 @@ def parse(text, variables):
     """Parse `text` and check it uses only numbers, + - * / **, `variables`, pi, e and FUNCTIONS."""
     if isinstance(text, bool) or not isinstance(text, (str, int, float)):
         raise ExpressionError(f"must be an expression string, got {type(text).__name__}")
+    if isinstance(text, float) and not math.isfinite(text):
+        raise ExpressionError(f"must be finite, got {text}")
     text = str(text)
     if len(text) > MAX_LENGTH:
         raise ExpressionError(f"longer than {MAX_LENGTH} characters")
+    source = text.strip()
     try:
-        tree = ast.parse(text.strip(), mode="eval").body
+        tree = ast.parse(source, mode="eval").body
     except SyntaxError as err:
-        raise ExpressionError(f"syntax error in {text!r} at column {err.offset}") from None
-    names = set()
-    _check(tree, set(variables), names, depth=0)
-    return Expression(text, tree, frozenset(names))
+        raise ExpressionError(_statement(source) or
+                              f"syntax error in {_clip(text)!r} at column {err.offset}: {err.msg}") from None
+    except (ValueError, RecursionError) as err:  # NUL bytes; nesting beyond the parser's stack
+        raise ExpressionError(f"cannot parse {_clip(text)!r}: {err}") from None
+    grammar = _Grammar(set(variables), source)
+    grammar.check(tree, depth=0)
+    return Expression(text, tree, frozenset(grammar.names))
 
 
-def _check(node, variables, names, depth):
-    if depth > MAX_DEPTH:
-        raise ExpressionError("nested too deeply")
-    if isinstance(node, ast.Constant):
-        if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-            raise ExpressionError(f"only numbers are allowed as literals, got {node.value!r}")
-    elif isinstance(node, ast.Name):
-        if node.id not in variables and node.id not in CONSTANTS:
-            allowed = ", ".join(sorted(variables) + sorted(CONSTANTS))
-            raise ExpressionError(f"unknown name {node.id!r} (allowed: {allowed})")
-        names.add(node.id)
-    elif isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
-        if isinstance(node.op, ast.Pow) and _literal_value(node.right) is not None:
-            if abs(_literal_value(node.right)) > MAX_EXPONENT:
-                raise ExpressionError(f"exponent larger than {MAX_EXPONENT}")
-        _check(node.left, variables, names, depth + 1)
-        _check(node.right, variables, names, depth + 1)
-    elif isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
-        _check(node.operand, variables, names, depth + 1)
-    elif isinstance(node, ast.Call):
-        _check_call(node, variables, names, depth)
-    else:
-        raise ExpressionError(f"{type(node).__name__} is not allowed (only numbers, + - * / **, "
+def _statement(source):
+    """'import statements are not allowed ...' when `source` is a Python statement, not an expression."""
+    try:
+        body = ast.parse(source, mode="exec").body  # parsed only, never compiled or run
+    except (SyntaxError, ValueError, RecursionError):
+        return None
+    if not body or isinstance(body[0], ast.Expr):
+        return None
+    kind = _STATEMENTS.get(type(body[0]), type(body[0]).__name__.lower())
+    return f"{kind} statements are not allowed (an expression is expected)"
+
+
+_STATEMENTS = {ast.Import: "import", ast.ImportFrom: "import", ast.Assign: "assignment",
+               ast.AugAssign: "assignment", ast.AnnAssign: "assignment", ast.FunctionDef: "def",
+               ast.AsyncFunctionDef: "def", ast.ClassDef: "class"}
+
+
+def _clip(text, width=40):
+    return text if len(text) <= width else text[:width - 3] + "..."
+
+
+class _Grammar:
+    """The checker: walks the AST, collects the names used, folds and checks constant parts."""
+
+    def __init__(self, variables, source):
+        self.variables, self.source, self.names = variables, source, set()
+
+    def check(self, node, depth):
+        """Check `node` against the grammar; return its value when it is constant, else None."""
+        if depth > MAX_DEPTH:
+            raise ExpressionError("nested too deeply")
+        if isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                raise ExpressionError(f"only numbers are allowed as literals, got {_clip(repr(node.value))}")
+            return self.finite(lambda: float(node.value), node)
+        if isinstance(node, ast.Name):
+            return self.name(node)
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            left, right = self.check(node.left, depth + 1), self.check(node.right, depth + 1)
+            return self.fold_binary(node, left, right)
+        if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
+            value = self.check(node.operand, depth + 1)
+            return None if value is None else (-value if isinstance(node.op, ast.USub) else value)
+        if isinstance(node, ast.Call):
+            return self.call(node, depth)
+        raise ExpressionError(f"{_construct(node)} not allowed (only numbers, + - * / **, "
                               f"names and {', '.join(FUNCTIONS)})")
 
+    def name(self, node):
+        if node.id not in self.variables and node.id not in CONSTANTS:
+            allowed = ", ".join(sorted(self.variables) + sorted(CONSTANTS))
+            raise ExpressionError(f"unknown name {_clip(node.id)!r} (allowed: {allowed})")
+        self.names.add(node.id)
+        return CONSTANTS[node.id] if node.id not in self.variables else None
 
-def _check_call(node, variables, names, depth):
-    if not isinstance(node.func, ast.Name):
-        raise ExpressionError("only calls of plain function names are allowed")
-    if node.func.id not in FUNCTIONS:
-        raise ExpressionError(f"unknown function {node.func.id!r} (allowed: {', '.join(FUNCTIONS)})")
-    if node.keywords or len(node.args) != 1:
-        raise ExpressionError(f"{node.func.id}() takes exactly one argument")
-    _check(node.args[0], variables, names, depth + 1)
+    def fold_binary(self, node, left, right):
+        """Reject exponents above MAX_EXPONENT and division by zero; fold two constant sides."""
+        if isinstance(node.op, ast.Pow) and right is not None and abs(right) > MAX_EXPONENT:
+            raise ExpressionError(f"exponent larger than {MAX_EXPONENT} in {self.show(node)!r}")
+        if isinstance(node.op, ast.Div) and right == 0:
+            raise ExpressionError(f"division by zero in {self.show(node)!r}")
+        if left is None or right is None:
+            return None
+        operation = {ast.Add: float.__add__, ast.Sub: float.__sub__, ast.Mult: float.__mul__,
+                     ast.Div: float.__truediv__, ast.Pow: float.__pow__}[type(node.op)]
+        return self.finite(lambda: operation(left, right), node)
+
+    def call(self, node, depth):
+        if not isinstance(node.func, ast.Name):
+            self.check(node.func, depth + 1)  # names what is wrong in `x.f()`, `(lambda: 0)()` ...
+            raise ExpressionError(f"only calls of plain function names are allowed, not {self.show(node.func)!r}")
+        if node.func.id not in FUNCTIONS:
+            raise ExpressionError(f"unknown function {_clip(node.func.id)!r} (allowed: {', '.join(FUNCTIONS)})")
+        if node.keywords or len(node.args) != 1:
+            raise ExpressionError(f"{node.func.id}() takes exactly one argument")
+        value = self.check(node.args[0], depth + 1)
+        return None if value is None else self.finite(lambda: _MATH[node.func.id](value), node)
+
+    def finite(self, compute, node):
+        """compute(), which must be a finite real number: a constant part that is not (1e999,
+        10.0**400, exp(1000), log(0), (-1)**0.5) would make every level's data inf or nan."""
+        try:
+            value = compute()
+        except (OverflowError, ValueError, ZeroDivisionError) as err:
+            raise ExpressionError(f"{self.show(node)!r} cannot be evaluated: {err}") from None
+        if not isinstance(value, float) or not math.isfinite(value):
+            raise ExpressionError(f"{self.show(node)!r} is not a finite real number")
+        return value
+
+    def show(self, node):
+        """The source text of `node`, shortened."""
+        return _clip(ast.get_source_segment(self.source, node) or ast.unparse(node))
 
 
-def _literal_value(node):
-    """The number a literal (possibly negated) stands for, else None."""
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
-        return node.value
-    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
-        inner = _literal_value(node.operand)
-        return None if inner is None else -inner
-    return None
+def _construct(node):
+    """How a rejected node is named in the message: 'attribute access is', 'lambdas are' ..."""
+    if isinstance(node, (ast.BinOp, ast.UnaryOp)) and type(node.op) in _OPERATORS:
+        return f"operator {_OPERATORS[type(node.op)]!r} is"
+    return _FORBIDDEN.get(type(node), f"{type(node).__name__} is")
 
 
 def _evaluate(node, variables, functions):

@@ -2,6 +2,7 @@
 import csv
 import functools
 import io
+import json
 import os
 import platform
 import subprocess
@@ -17,6 +18,8 @@ SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
                 "L2", "rate_L2", "H1", "rate_H1", "time_s")
 EXTRA_COLUMNS = ("reason", "linear_its", "final_residual")
 NORMS = ("L2", "H1")
+# one line: running (k of n levels done) | complete | interrupted at level k | failed at level k: reason
+STATUS_FILE = "status.txt"
 
 
 def table(levels):
@@ -40,18 +43,28 @@ def table(levels):
     return rows
 
 
-def write(cfg, levels, comm=MPI.COMM_WORLD):
-    """Write rates.csv and study.h5 for the levels so far (rank 0 writes, every rank waits)."""
+def write(cfg, levels, comm=MPI.COMM_WORLD, status=None):
+    """Write rates.csv and study.h5 (and status.txt, given a status) for the levels so far
+    (rank 0 writes, every rank waits)."""
     rows = table(levels)
     summary = verdict.summarize(cfg, levels)
     if comm.rank == 0:
-        folder = cfg.output_dir
-        folder.mkdir(parents=True, exist_ok=True)
-        _replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
-        _replace(folder / "summary.csv", lambda path: path.write_text(verdict.csv_text(summary)))
-        _replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, comm.size, summary))
+        write_files(cfg, levels, rows, comm.size, status, summary)
     comm.barrier()
     return rows
+
+
+def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
+    """The writing of `write` by this rank alone, no collective: the fault path calls it on the rank
+    that failed. Each file is replaced atomically; status.txt last."""
+    summary = verdict.summarize(cfg, levels) if summary is None else summary
+    folder = cfg.output_dir
+    folder.mkdir(parents=True, exist_ok=True)
+    _replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
+    _replace(folder / "summary.csv", lambda path: path.write_text(verdict.csv_text(summary)))
+    _replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
+    if status is not None:
+        _replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
 
 
 def csv_text(rows):
@@ -99,14 +112,19 @@ def versions():
             "python": platform.python_version()}
 
 
-def _write_h5(path, cfg, levels, rows, mpi_size, summary=None):
+def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
     import h5py
     import numpy as np
+    from .config import canonical, fingerprint
     with h5py.File(path, "w") as h5:
         h5.attrs["config"] = cfg.text
         h5.attrs["study"] = cfg.study
         h5.attrs["mpi_size"] = mpi_size
         h5.attrs["levels_done"] = len(levels)
+        h5.attrs["config_hash"] = fingerprint(cfg)  # --resume continues only under the same hash
+        h5.attrs["config_canonical"] = json.dumps(canonical(cfg), sort_keys=True, default=str)
+        if status is not None:
+            h5.attrs["status"] = status
         for name, version in versions().items():
             h5.attrs[f"version_{name}"] = version
         _write_provenance(h5, cfg, levels)

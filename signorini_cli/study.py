@@ -24,15 +24,21 @@ class Level:
     extra: dict = field(default_factory=dict)
 
 
-def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None):
+def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     """Solve every level of `cfg`; call on_level(levels_so_far) after each; return the levels.
-    `monitor(snes, its, fnorm)`, if given, is called at every Newton iteration (progress)."""
+    `monitor(snes, its, fnorm)`, if given, is called at every Newton iteration (progress).
+    `done`: the levels a resumed study already has, kept as they are and not solved again."""
     if cfg.study_type != "refinement":  # the Signorini limit studies (docs/limit.md)
         from . import limit
         return limit.run_study(cfg, on_level, comm, monitor)
-    levels = []
+    levels = list(done)
+    if done and not done[-1].outcome.converged and cfg.solver.on_failure == "stop":
+        return levels  # the study had already stopped there
     verifier = verification.Verifier(cfg, comm)
+    resume_verifier(cfg, done, comm, verifier)
     for index, n in enumerate(cfg.mesh.refinements):
+        if index < len(done):
+            continue
         levels.append(solve_level(cfg, index, n, comm, monitor, verifier))
         verification.add_rates(levels)
         if on_level is not None:
@@ -40,6 +46,14 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None):
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels
+
+
+def resume_verifier(cfg, done, comm, verifier):
+    """A resumed study solves its last converged level again, unrecorded: the successive differences
+    (measure `diff`) of the next level need its u_h."""
+    converged = [lv for lv in done if lv.outcome.converged]
+    if converged and len(done) < len(cfg.mesh.refinements) and "diff" in verifier.measures:
+        solve_level(cfg, converged[-1].index, converged[-1].n, comm, verifier=verifier)
 
 
 def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None):

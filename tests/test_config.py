@@ -232,3 +232,25 @@ def test_limit_to_dict_round_trip(name):
 def test_limit_fields_only_for_refinement_levels():
     with pytest.raises(config.ConfigError, match="^output.fields: not written by study_type epsilon_sweep"):
         load_limit({"output": {"fields": True}})
+
+
+def test_exponent_numbers_are_numbers():
+    """YAML 1.1 (PyYAML) reads 1e-8 as a string; configs read it as the number YAML 1.2 says it is."""
+    cfg = config.loads(yaml.safe_dump(BASE) + "solver: {rtol: 1e-8, atol: 1E-12}\n", ["epsilon.theta=5e-1"])
+    assert cfg.solver.rtol == 1e-8 and cfg.solver.atol == 1e-12 and cfg.epsilon.theta == 0.5
+    assert config.yaml_load("a: 8\nb: 1_0\nc: '1e3'") == {"a": 8, "b": 10, "c": "1e3"}
+
+
+def test_duplicate_key_is_an_error():
+    with pytest.raises(yaml.YAMLError, match="found duplicate key 'alpha'") as err:
+        config.loads(yaml.safe_dump(BASE) + "alpha: 3.0\n")
+    assert err.value.problem_mark.line + 1 == len(yaml.safe_dump(BASE).splitlines()) + 1
+
+
+def test_yaml_merge_keys_are_not_duplicates():
+    assert config.yaml_load("a: &x {k: 1}\nb:\n  <<: *x\n  j: 2\n") == {"a": {"k": 1}, "b": {"k": 1, "j": 2}}
+
+
+def test_override_value_not_yaml():
+    with pytest.raises(config.ConfigError, match=r"^--set mesh.refinements: '\[4' is not a YAML value"):
+        config.loads(yaml.safe_dump(BASE), ["mesh.refinements=[4"])

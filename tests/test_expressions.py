@@ -1,5 +1,6 @@
 """The expression translator accepts its grammar and nothing else."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -23,20 +24,20 @@ def test_parse_accepts_grammar(text, value):
 
 
 @pytest.mark.parametrize("text, message", [
-    pytest.param("x.__class__", "Attribute is not allowed", id="attribute"),
+    pytest.param("x.__class__", "attribute access is not allowed", id="attribute"),
     pytest.param("__import__('os')", "unknown function '__import__'", id="dunder-call"),
     pytest.param("__builtins__", "unknown name '__builtins__'", id="dunder-name"),
-    pytest.param("import os", "syntax error", id="import"),
+    pytest.param("import os", "import statements are not allowed", id="import"),
     pytest.param("open('f')", "unknown function 'open'", id="unknown-call"),
     pytest.param("z + 1", "unknown name 'z'", id="z-in-2d"),
-    pytest.param("lambda: 1", "Lambda is not allowed", id="lambda"),
-    pytest.param("[x for x in y]", "ListComp is not allowed", id="comprehension"),
+    pytest.param("lambda: 1", "lambdas are not allowed", id="lambda"),
+    pytest.param("[x for x in y]", "comprehensions are not allowed", id="comprehension"),
     pytest.param("'text'", "only numbers", id="string"),
     pytest.param("x**1000", "exponent larger than 100", id="huge-exponent"),
     pytest.param("sin(x, y)", "exactly one argument", id="arity"),
     pytest.param("sin(x", "syntax error", id="syntax"),
-    pytest.param("x if y else 1", "IfExp is not allowed", id="ternary"),
-    pytest.param("x < y", "Compare is not allowed", id="compare"),
+    pytest.param("x if y else 1", "if/else is not allowed", id="ternary"),
+    pytest.param("x < y", "comparisons are not allowed", id="compare"),
     pytest.param("True", "only numbers", id="bool"),
     pytest.param("(lambda: 0).__globals__", "not allowed", id="globals"),
 ])
@@ -53,3 +54,63 @@ def test_evaluate_numpy_vectorised():
     expr = expressions.parse("x**2 + y", XY)
     x = np.linspace(0, 1, 5)
     assert np.allclose(expr({"x": x, "y": 1.0}, expressions.numpy_functions()), x**2 + 1)
+
+
+SENTINEL = "signorini-pwned"
+# Known Python-injection payloads; each would create SENTINEL in the working folder if it ran.
+INJECTIONS = [
+    f"__import__('os').system('touch {SENTINEL}')",
+    f"__import__('pathlib').Path('{SENTINEL}').touch()",
+    f"open('{SENTINEL}', 'w').write('x')",
+    f"exec(\"open('{SENTINEL}', 'w')\")",
+    f"eval(\"open('{SENTINEL}', 'w')\")",
+    f"compile(\"open('{SENTINEL}', 'w')\", 'f', 'exec')",
+    f"getattr(__builtins__, 'open')('{SENTINEL}', 'w')",
+    f"().__class__.__base__.__subclasses__()[0]('{SENTINEL}')",
+    f"[c for c in ().__class__.__base__.__subclasses__() if c.__name__ == 'FileIO'][0]('{SENTINEL}', 'w')",
+    f"(lambda: open('{SENTINEL}', 'w'))()",
+    f"f\"{{open('{SENTINEL}', 'w')}}\"",
+    f"(o := open)('{SENTINEL}', 'w')",
+    f"x if open('{SENTINEL}', 'w') else 1",
+    f"sin(open('{SENTINEL}', 'w'))",
+    f"x.__class__.__init__.__globals__['os'].system('touch {SENTINEL}')",
+    f"globals()['__builtins__'].open('{SENTINEL}', 'w')",
+    f"breakpoint() or open('{SENTINEL}', 'w')",
+    f"import os; os.system('touch {SENTINEL}')",
+    f"__import__('subprocess').run(['touch', '{SENTINEL}'])",
+    f"1 + exit()",
+    f"x; open('{SENTINEL}', 'w')",
+    f"\\u005f\\u005fimport\\u005f\\u005f('os').system('touch {SENTINEL}')",
+]
+
+
+@pytest.mark.parametrize("payload", INJECTIONS)
+def test_parse_injection_has_no_side_effect(payload, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(expressions.ExpressionError):
+        expressions.parse(payload, XY)
+    assert not (tmp_path / SENTINEL).exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("text, message", [
+    pytest.param("1/0", "division by zero in '1/0'", id="division-by-zero"),
+    pytest.param("x/(2-2)", "division by zero in 'x/(2-2)'", id="division-by-folded-zero"),
+    pytest.param("9**9**9", "exponent larger than 100 in '9**9**9'", id="exponent-tower"),
+    pytest.param("x**(10*11)", "exponent larger than 100 in 'x**(10*11)'", id="folded-exponent"),
+    pytest.param("exp(1000)", "'exp(1000)' cannot be evaluated: math range error", id="overflow"),
+    pytest.param("log(0)", "'log(0)' cannot be evaluated: math domain error", id="log-zero"),
+    pytest.param("(-8)**(1/3)", "'(-8)**(1/3)' is not a finite real number", id="complex"),
+    pytest.param("1e999*x", "'1e999' is not a finite real number", id="inf-literal"),
+    pytest.param("x\x00", "cannot parse", id="nul"),
+    pytest.param("x = 1", "assignment statements are not allowed", id="statement"),
+    pytest.param("x % 2", "operator '%' is not allowed", id="modulo"),
+])
+def test_parse_rejects_constant_faults(text, message):
+    with pytest.raises(expressions.ExpressionError, match="^" + re.escape(message)):
+        expressions.parse(text, XY)
+
+
+def test_parse_accepts_large_but_finite_constants():
+    expr = expressions.parse("2**100*x + exp(700) - 1e300", XY)
+    assert np.isfinite(expr({"x": 1.0, "y": 0.0}, expressions.numpy_functions()))

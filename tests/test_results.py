@@ -50,3 +50,13 @@ def test_h5_records_resolved_config_column_order_and_revision(make_config):
             assert re.fullmatch(r"[0-9a-f]{40}(\+dirty)?", h5.attrs["git_revision"])
         else:
             assert "git_revision" not in h5.attrs
+
+
+def test_status_and_config_hash_recorded(make_config):
+    from signorini_cli import config
+    cfg = make_config()
+    results.write(cfg, study.run_study(cfg), status="complete")
+    assert (cfg.output_dir / results.STATUS_FILE).read_text() == "complete\n"
+    with h5py.File(cfg.output_dir / "study.h5") as h5:
+        assert h5.attrs["status"] == "complete" and h5.attrs["config_hash"] == config.fingerprint(cfg)
+        assert list(h5["table"].attrs["columns"])[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
