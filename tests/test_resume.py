@@ -14,7 +14,8 @@ from conftest import BASE, merge
 
 def write_config(folder, **changes):
     path = Path(folder) / "c.yaml"
-    path.write_text(yaml.safe_dump(merge(BASE, dict(changes, output={"dir": str(Path(folder) / "out")}))))
+    output = {"dir": str(Path(folder) / "out"), "plots": False}  # figures cost ~2 s a run
+    path.write_text(yaml.safe_dump(merge(BASE, dict(changes, output=output))))
     return str(path)
 
 
@@ -33,7 +34,7 @@ def test_read_levels_round_trip(make_config):
 
 def test_resume_refuses_changed_config(tmp_path, capsys):
     path = write_config(tmp_path)
-    assert cli.main(["run", path]) == cli.EXIT_OK
+    assert cli.main(["run", path, "--quiet"]) == cli.EXIT_OK
     assert cli.main(["run", path, "--resume", "--set", "epsilon.theta=2"]) == cli.EXIT_BAD_INPUT
     assert capsys.readouterr().err == (
         f"signorini: error: {path}: --resume: the config changed since {tmp_path}/out/t/study.h5 was "
@@ -74,6 +75,7 @@ def test_resume_refuses_unreadable_h5(tmp_path, capsys):
     path = write_config(tmp_path)
     assert cli.main(["run", path]) == cli.EXIT_OK
     (tmp_path / "out" / "t" / "study.h5").write_text("not HDF5")
+    capsys.readouterr()
     assert cli.main(["run", path, "--resume"]) == cli.EXIT_BAD_INPUT
     err = capsys.readouterr().err
     assert "--resume: cannot read" in err and err.count("\n") == 1

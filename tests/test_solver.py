@@ -56,7 +56,7 @@ def test_nan_jacobian_fails_the_linear_solve(make_config, monkeypatch, linear):
 def test_nonfinite_level_in_cli(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text(yaml.safe_dump(merge(BASE, {"problem": NAN_DATA, "solver": {"on_failure": "stop"},
-                                                "output": {"dir": str(tmp_path / "out")}})))
+                                                "output": {"dir": str(tmp_path / "out"), "plots": False}})))
     assert cli.main(["run", str(path)]) == cli.EXIT_NOT_CONVERGED
     with open(tmp_path / "out" / "t" / "rates.csv") as f:
         (row,) = csv.DictReader(f)
