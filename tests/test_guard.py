@@ -33,9 +33,9 @@ def write_config(folder, refinements=LEVELS, **changes):
 
 
 def table(folder):
-    """rates.csv without time_s (wall time differs between runs), as strings."""
+    """rates.csv without time_s, reference_time_s (wall times differ between runs), as strings."""
     with open(Path(folder) / "t" / "rates.csv") as f:
-        return [{k: v for k, v in row.items() if k != "time_s"} for row in csv.DictReader(f)]
+        return [{k: v for k, v in row.items() if not k.endswith("time_s")} for row in csv.DictReader(f)]
 
 
 def status(folder):
@@ -95,6 +95,20 @@ def test_signal_keeps_levels_and_resume_completes(whole, tmp_path, monkeypatch, 
     assert "use --resume to continue them or --force to overwrite" in capsys.readouterr().err
     assert cli.main(["run", config, "--output", out, "--resume"]) == cli.EXIT_OK
     assert table(out) == whole and status(out) == "complete"
+
+
+def test_resume_data_only_scene_keeps_successive_differences(tmp_path, monkeypatch):
+    """A data-only scene measures diff_L2/diff_H1 against the previous level's u_h: the first resumed
+    level gets them too (the last finished level is solved again for its u_h)."""
+    data_only = {"problem": {"exact": None, "f": "-10"}}
+    config, out = write_config(tmp_path, [4, 8, 16], **data_only), str(tmp_path / "out")
+    assert cli.main(["run", config, "--output", str(tmp_path / "whole"), "--quiet"]) == cli.EXIT_OK
+    whole = table(tmp_path / "whole")
+    signal_at_level(monkeypatch, 2, signal.SIGTERM)
+    assert cli.main(["run", config, "--output", out, "--quiet"]) == 128 + signal.SIGTERM
+    monkeypatch.undo()
+    assert cli.main(["run", config, "--output", out, "--resume", "--quiet"]) == cli.EXIT_OK
+    assert table(out)[2]["diff_L2"] != "" and table(out) == whole
 
 
 def test_signal_inside_newton_then_resume(whole, tmp_path, monkeypatch):
