@@ -30,18 +30,29 @@ def needed_bytes(dofs, nonzeros, ranks):
 
 
 def check_memory(cfg, comm):
-    """ConfigError on every rank when the finest level would need more memory than the nodes of
-    `comm` have available (checked before --force; --force skips the check)."""
-    n = cfg.mesh.refinements[-1]
-    size = level_size(cfg.mesh, n)
-    if size is None:
+    """ConfigError on every rank when the finest level (with its reference solution, for a data-only
+    scene) would need more memory than the nodes of `comm` have available. --force skips the check."""
+    sizes = [level_size(cfg.mesh, n) for n in peak_levels(cfg)]
+    if None in sizes:
         return
-    dofs, nonzeros = size
+    dofs, nonzeros = sum(d for d, _ in sizes), sum(z for _, z in sizes)
     need, have = needed_bytes(dofs, nonzeros, comm.size), available_on_nodes(comm)
     if need > have:
-        raise ConfigError("mesh.refinements", f"the finest level (N={n}: {dofs:,} dofs, {nonzeros:,} Jacobian "
-                                              f"nonzeros) needs about {_gb(need)} of memory, more than the "
-                                              f"{_gb(have)} available; use --force to run it anyway")
+        what = ("the finest level" if len(sizes) == 1 else "the finest level with its reference solution")
+        cells = " and ".join(f"N={n}" for n in peak_levels(cfg))
+        raise ConfigError("mesh.refinements", f"{what} ({cells}: {dofs:,} dofs, {nonzeros:,} Jacobian nonzeros) "
+                                              f"needs about {_gb(need)} of memory, more than the {_gb(have)} "
+                                              "available; use --force to run it anyway")
+
+
+def peak_levels(cfg):
+    """Cells per side of the meshes alive at the peak: the finest level, and for a data-only scene
+    the reference solution's mesh, verification.reference_refinements times finer."""
+    finest = cfg.mesh.refinements[-1]
+    verification = getattr(cfg, "verification", None)
+    if cfg.problem.exact is None and verification is not None and verification.reference_refinements > 0:
+        return [finest, finest * 2**verification.reference_refinements]
+    return [finest]
 
 
 def available_on_nodes(comm):

@@ -50,6 +50,17 @@ def test_too_big_refused_with_estimate(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "out").exists()  # refused before anything was built or written
 
 
+def test_data_only_counts_its_reference_solution(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(resources, "available_bytes", lambda: 2**30)
+    path = write(tmp_path, mesh={"refinements": [8, 512]}, problem={"exact": None, "f": "-10"})
+    assert cli.main(["run", path]) == cli.EXIT_BAD_INPUT
+    # 513^2 + 1025^2 = 1,313,794 dofs (the reference mesh is twice finer), 7 nonzeros per row: 2.3 GiB
+    assert capsys.readouterr().err == (
+        f"signorini: error: {path}: mesh.refinements: the finest level with its reference solution (N=512 and "
+        "N=1024: 1,313,794 dofs, 9,196,558 Jacobian nonzeros) needs about 2.3 GiB of memory, more than the 1.0 "
+        "GiB available; use --force to run it anyway\n")
+
+
 def test_force_runs_anyway(tmp_path, monkeypatch):
     monkeypatch.setattr(resources, "available_bytes", lambda: 1)
     assert cli.main(["run", write(tmp_path)]) == cli.EXIT_BAD_INPUT
