@@ -139,3 +139,11 @@ def same_table(a, b):
             return x == y  # true/false, reasons, empty cells
     return len(a) == len(b) and all(row_a.keys() == row_b.keys() and
                                     all(close(k, row_a[k], row_b[k]) for k in row_a) for row_a, row_b in zip(a, b))
+
+
+def test_resume_refuses_other_study_types(tmp_path, capsys):
+    path = write_config(tmp_path, study_type="signorini", alpha=None, epsilon=None,
+                        problem={"exact": None, "f": "-10"})
+    assert cli.main(["run", path, "--resume"]) == cli.EXIT_BAD_INPUT
+    assert capsys.readouterr().err == (f"signorini: error: {path}: --resume: study_type signorini runs from the "
+                                       "start; use --force\n")
