@@ -41,11 +41,8 @@ def norms(rows):
 
 def fitted_slope(h, e, k=FIT_LEVELS):
     """Least-squares slope of log e against log h over the last k points (None with fewer than 2)."""
-    import numpy as np
-    h, e = np.asarray(h, dtype=float)[-k:], np.asarray(e, dtype=float)[-k:]
-    if len(h) < 2 or np.ptp(np.log(h)) == 0:
-        return None
-    return float(np.polyfit(np.log(h), np.log(e), 1)[0])
+    from . import rates
+    return rates.fitted(list(h), list(e), [True] * len(e), k)
 
 
 def format_table(rows):

@@ -61,18 +61,20 @@ def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
     _replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
-    _replace(folder / "summary.csv", lambda path: path.write_text(verdict.csv_text(summary)))
+    summary_text = csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
+    _replace(folder / "summary.csv", lambda path: path.write_text(summary_text))
     _replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
     if status is not None:
         _replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
 
 
-def csv_text(rows):
-    """The table as CSV: floats in full precision, empty cells for missing values."""
-    if not rows:
+def csv_text(rows, columns=None):
+    """The table as CSV: floats in full precision, empty cells for missing values; `columns`
+    defaults to the first row's keys (rows lacking a column leave it empty)."""
+    if not rows and columns is None:
         return ""
     out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=list(rows[0]), lineterminator="\n")
+    writer = csv.DictWriter(out, fieldnames=list(columns or rows[0]), lineterminator="\n", restval="")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: _cell(v) for k, v in row.items()})
@@ -89,10 +91,17 @@ def _cell(value):
     return value
 
 
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _replace(path, write_to):
     """Write through a temporary file in the same folder, then rename: readers never see half a file."""
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; results are as readable as any new file
     try:
         write_to(Path(tmp))
         os.replace(tmp, path)

@@ -1,7 +1,5 @@
 """A study's verdict against the paper: per norm the fitted rate, the proven rate and whether they agree;
 per scalar quantity the observed order, Richardson extrapolation and GCI; the user's `expect:` block."""
-import csv
-import io
 from dataclasses import asdict, dataclass
 
 from . import rates
@@ -216,16 +214,6 @@ def summary_rows(summary):
     return rows
 
 
-def csv_text(summary):
-    """summary.csv: the rows of summary_rows, empty cells where a field does not apply."""
-    out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    for row in summary_rows(summary):
-        writer.writerow({k: _cell(v) for k, v in row.items()})
-    return out.getvalue()
-
-
 def write_h5(group, summary):
     """The summary as HDF5 attributes: one subgroup per norm, quantity and expectation."""
     group.attrs["fit_levels"] = summary.fit_levels
@@ -242,13 +230,3 @@ def write_h5(group, summary):
 
 def _levels(ns):
     return " ".join(str(n) for n in ns)
-
-
-def _cell(value):
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return repr(value)
-    return value

@@ -6,7 +6,7 @@ import math
 import h5py
 import pytest
 
-from signorini_cli import verdict
+from signorini_cli import results, verdict
 from signorini_cli.solver import Outcome
 from signorini_cli.study import Level
 
@@ -98,7 +98,7 @@ def test_quantities_get_gci_for_data_only_scenes(make_config):
 def test_summary_csv_and_h5(make_config, tmp_path):
     cfg = make_config(expect={"rates": {"L2": 2.0}})
     summary = verdict.summarize(cfg, levels({"L2": [h**2 for h in H], "H1": [h for h in H]}))
-    rows = list(csv.DictReader(io.StringIO(verdict.csv_text(summary))))
+    rows = list(csv.DictReader(io.StringIO(results.csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS))))
     assert [(r["kind"], r["name"], r["verdict"]) for r in rows] == [
         ("norm", "L2", "agrees"), ("norm", "H1", "agrees"), ("expect", "L2", "")]
     assert float(rows[0]["proven_rate"]) == 2 and rows[0]["paper"] == "Lemma 4.2" and rows[2]["met"] == "true"
