@@ -17,7 +17,7 @@ CONFIGS := $(shell find configs -name '*.yaml' | sort)
 PAPER_CONFIGS := $(sort $(wildcard configs/paper/*.yaml))
 PAPER_RESULTS := results/paper
 
-.PHONY: setup demo test test-serial test-mpi run studies verify clean
+.PHONY: setup demo test test-serial test-mpi run studies verify meshes geometries clean
 
 setup: $(STAMP)
 
@@ -52,6 +52,18 @@ verify: setup
 	mkdir -p docs; $(PY) scripts/verification_page.py $(PAPER_RESULTS) $(PAPER_CONFIGS) > docs/verification.md.tmp; \
 	mv docs/verification.md.tmp docs/verification.md; echo "wrote docs/verification.md"; \
 	if [ -n "$$missed" ]; then echo "expectations not met or levels not converged:$$missed"; exit 1; fi
+
+# gmsh meshes of every config's geometry levels into meshes/cache/ (studies also fill it on demand)
+meshes: setup
+	$(PY) -m signorini_cli.geometries $(CONFIGS)
+
+# configs/gmsh studies serially and on $(NP) ranks, then docs/geometries.md from their tables
+GMSH_CONFIGS := $(shell find configs/gmsh -name '*.yaml' | sort)
+geometries: setup
+	@set -e; for c in $(GMSH_CONFIGS); do echo "== $$c"; \
+	  $(SIGNORINI) run $$c --force --output results/geometries/serial || test $$? -eq 1; \
+	  $(MPIRUN) $(SIGNORINI) run $$c --force --output results/geometries/mpi > /dev/null || test $$? -eq 1; done
+	$(PY) scripts/geometries_page.py results/geometries/serial results/geometries/mpi $(GMSH_CONFIGS) > docs/geometries.md
 
 clean:
 	rm -rf results build *.egg-info .pytest_cache

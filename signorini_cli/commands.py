@@ -90,9 +90,9 @@ def study_config(study):
 
 def _levels_done(study, cfg):
     done = len(study.rows)
-    if cfg is None or done >= len(cfg.mesh.refinements):
+    if cfg is None or done >= len(cfg.mesh.levels):
         return f"{done} level{'s' if done != 1 else ''}"
-    return f"{done} of {len(cfg.mesh.refinements)} levels (partial study)"
+    return f"{done} of {len(cfg.mesh.levels)} levels (partial study)"
 
 
 def compare(args):

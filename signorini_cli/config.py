@@ -10,10 +10,12 @@ from pathlib import Path
 
 import yaml
 
-from . import expressions
+from . import expressions, geometry_files
 
 LAWS = ("theta_h", "theta_sqrt_h", "constant", "power")
 MESH_KINDS = {"unit_square": 2, "unit_cube": 3}
+GEOMETRY_KINDS = ("gmsh", "file")  # meshes from a .geo geometry or from .msh files (physical groups)
+REFINE = ("none", "uniform")
 FACES = {2: ("left", "right", "bottom", "top"),
          3: ("left", "right", "front", "back", "bottom", "top")}
 DIAGONALS = ("right", "left", "crossed")
@@ -59,6 +61,28 @@ class Mesh:
     kind: str = "unit_square"
     refinements: tuple = (8, 16, 32, 64)
     diagonal: str = "right"
+    geometry: str = ""          # gmsh: a shipped name (meshes/<name>.geo) or a .geo file
+    sizes: tuple = ()           # gmsh: target cell size per level (the base mesh's with refine: uniform)
+    path: tuple = ()            # file: .msh files, one per level (the base mesh with refine: uniform)
+    refine: str = "none"        # gmsh/file: uniform = levels are refinements of one base mesh (nested)
+    cache: str = geometry_files.CACHE_DIR
+    groups: tuple = ()          # gmsh/file: (name, dimension) of the source's named physical groups
+
+    @property
+    def level_key(self):
+        """The config key listing one entry per level."""
+        if self.kind in MESH_KINDS or self.refine == "uniform":
+            return "refinements"
+        return "sizes" if self.kind == "gmsh" else "path"
+
+    @property
+    def levels(self):
+        """One entry per level: cells per side, refinements of the base, gmsh sizes or .msh paths."""
+        return getattr(self, self.level_key)
+
+    @property
+    def dimension(self):
+        return MESH_KINDS.get(self.kind) or max(dim for _, dim in self.groups)
 
 
 @dataclass(frozen=True)
@@ -201,17 +225,17 @@ def from_dict(raw):
     if "/" in study or study in (".", ".."):
         raise ConfigError("study", f"must be a plain folder name, got {study!r}")
     mesh = _mesh(raw["mesh"], "mesh")
-    dim = _integer(raw.get("dimension", MESH_KINDS[mesh.kind]), "dimension")
+    dim = _integer(raw.get("dimension", mesh.dimension), "dimension")
     if dim not in (2, 3):
         raise ConfigError("dimension", f"must be 2 or 3, got {dim}")
-    if MESH_KINDS[mesh.kind] != dim:
-        raise ConfigError("mesh.kind", f"{mesh.kind} is {MESH_KINDS[mesh.kind]}-D but dimension is {dim}")
+    if mesh.dimension != dim:
+        raise ConfigError("mesh.kind", f"{mesh.kind} is {mesh.dimension}-D but dimension is {dim}")
     alpha = _number(raw.get("alpha", 2.0), "alpha", low=1.0)
     if dim == 3 and alpha > MAX_ALPHA_3D:
         raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g}")
     base = Config(study=study, dimension=dim, alpha=alpha,
                   epsilon=_epsilon(raw.get("epsilon", {}), "epsilon"),
-                  mesh=mesh, contact=_choice(raw["contact"], "contact", FACES[dim]),
+                  mesh=mesh, contact=_contact(raw["contact"], mesh, dim),
                   problem=_problem(raw.get("problem"), "problem", dim),
                   positive_part=_positive_part(raw.get("positive_part", "exact"), "positive_part"),
                   solver=_solver(raw.get("solver", {}), "solver"),
@@ -219,7 +243,26 @@ def from_dict(raw):
                   verification=_verification(raw.get("verification", {}), "verification", raw.get("problem")),
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=_string(raw.get("description", ""), "description", empty=True))
-    return _study_type(base, raw)
+    return _study_type(_check_geometry_mesh(base, raw), raw)
+
+
+def _check_geometry_mesh(cfg, raw):
+    """gmsh/file meshes serve refinement studies; levels that gmsh meshes one by one are not nested (on a
+    curved boundary not even the same polygon), but a reference solution or successive differences move
+    each level onto a finer one."""
+    v, mesh = cfg.verification, cfg.mesh
+    if mesh.kind in GEOMETRY_KINDS and raw.get("study_type", "refinement") != "refinement":
+        raise ConfigError("mesh.kind", f"{mesh.kind} meshes serve refinement studies, not study_type "
+                                       f"{raw['study_type']}")
+    data_only = cfg.problem.exact is None
+    diff = "diff" in (v.measures if v.measures is not None else ("diff",) if data_only else ())
+    compared = diff or (data_only and v.reference_refinements > 0)
+    if compared and mesh.kind in GEOMETRY_KINDS and mesh.refine == "none" and len(mesh.levels) > 1:
+        raise ConfigError("mesh.refine", "levels meshed one by one are not nested, but a reference solution "
+                                         "or successive differences compare levels on finer meshes: use "
+                                         "refine: uniform (or verification.measures without diff and "
+                                         "reference_refinements: 0)")
+    return cfg
 
 
 def _epsilon(raw, path):
@@ -232,8 +275,10 @@ def _epsilon(raw, path):
 
 
 def _mesh(raw, path):
+    if isinstance(raw, dict) and raw.get("kind") in GEOMETRY_KINDS:
+        return _geometry_mesh(raw, path)
     _keys(raw, path, required=("kind", "refinements"), optional=("diagonal",))
-    kind = _choice(raw["kind"], f"{path}.kind", tuple(MESH_KINDS))
+    kind = _choice(raw["kind"], f"{path}.kind", tuple(MESH_KINDS) + GEOMETRY_KINDS)
     levels = raw["refinements"]
     if not isinstance(levels, list) or not levels:
         raise ConfigError(f"{path}.refinements", f"must be a non-empty list of cells per side, got {levels!r}")
@@ -243,6 +288,92 @@ def _mesh(raw, path):
             raise ConfigError(f"{path}.refinements", f"must increase, got {list(levels)}")
     diagonal = _choice(raw.get("diagonal", "right"), f"{path}.diagonal", DIAGONALS)
     return Mesh(kind, levels, diagonal)
+
+
+def _geometry_mesh(raw, path):
+    """mesh: {kind: gmsh, geometry, sizes} or {kind: file, path}, optionally refine: uniform + refinements."""
+    kind = raw["kind"]
+    source, listed = ("geometry", "sizes") if kind == "gmsh" else ("path", "path")
+    _keys(raw, path, required=("kind", source, listed),
+          optional=("refine", "refinements", "cache"))
+    refine = _choice(raw.get("refine", "none"), f"{path}.refine", REFINE)
+    if kind == "gmsh":
+        geometry = _string(raw["geometry"], f"{path}.geometry")
+        sources = (_geometry_file(geometry, f"{path}.geometry"),)
+        entries = _sizes(raw["sizes"], f"{path}.sizes")
+    else:
+        entries = _msh_files(raw["path"], f"{path}.path")
+        sources, geometry = entries, ""
+    if refine == "uniform":
+        if len(entries) != 1:
+            raise ConfigError(f"{path}.{listed}", f"refine: uniform refines one base mesh, got {len(entries)}")
+        refinements = _refinements(raw.get("refinements"), f"{path}.refinements")
+    elif "refinements" in raw:
+        raise ConfigError(f"{path}.refinements", "only meaningful with refine: uniform")
+    else:
+        refinements = ()
+    return Mesh(kind, refinements, geometry=geometry, sizes=entries if kind == "gmsh" else (),
+                path=entries if kind == "file" else (), refine=refine,
+                cache=_string(raw.get("cache", geometry_files.CACHE_DIR), f"{path}.cache"),
+                groups=_groups(sources, f"{path}.{source}"))
+
+
+def _geometry_file(name, path):
+    geo = geometry_files.geometry_path(name)
+    if not geo.is_file():
+        shipped = ", ".join(geometry_files.shipped_geometries())
+        raise ConfigError(path, f"{name!r} is neither a shipped geometry ({shipped}) nor an existing .geo file")
+    return geo
+
+
+def _msh_files(raw, path):
+    files = [raw] if isinstance(raw, str) else raw
+    if not isinstance(files, list) or not files:
+        raise ConfigError(path, f"must be a .msh file or a non-empty list of them, got {_show(raw)}")
+    for i, name in enumerate(files):
+        where = path if isinstance(raw, str) else f"{path}[{i}]"
+        if not isinstance(name, str) or not Path(name).is_file():
+            raise ConfigError(where, f"no such mesh file: {name!r}")
+    return tuple(files)
+
+
+def _sizes(raw, path):
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(path, f"must be a non-empty list of target cell sizes, got {_show(raw)}")
+    sizes = tuple(_number(s, f"{path}[{i}]", positive=True) for i, s in enumerate(raw))
+    if any(b >= a for a, b in zip(sizes, sizes[1:])):
+        raise ConfigError(path, f"must decrease (finer levels last), got {list(sizes)}")
+    return sizes
+
+
+def _refinements(raw, path):
+    if not isinstance(raw, list) or not raw:
+        raise ConfigError(path, f"must be a non-empty list of refinement counts (0 = the base mesh), got {_show(raw)}")
+    counts = tuple(_integer(k, f"{path}[{i}]", low=0) for i, k in enumerate(raw))
+    if any(b <= a for a, b in zip(counts, counts[1:])):
+        raise ConfigError(path, f"must increase, got {list(counts)}")
+    return counts
+
+
+def _groups(sources, path):
+    """The (name, dimension) physical groups every source defines, with a domain of dimension 2 or 3."""
+    per_source = [geometry_files.physical_groups(s) for s in sources]
+    groups = {name: dim for name, dim in per_source[0].items()
+              if all(other.get(name) == dim for other in per_source[1:])}
+    if not groups or max(groups.values()) not in (2, 3):
+        raise ConfigError(path, f"{sources[0]} names no physical group of dimension 2 or 3 (the domain): "
+                                "name the domain, Γ_C and Γ_D with Physical ... (\"name\")")
+    return tuple(sorted(groups.items()))
+
+
+def _contact(value, mesh, dim):
+    """A face name on the unit square/cube, or a physical group of dimension d - 1 of a gmsh/file mesh."""
+    if mesh.kind in MESH_KINDS:
+        return _choice(value, "contact", FACES[dim])
+    facet_groups = tuple(name for name, d in mesh.groups if d == dim - 1)
+    if not facet_groups:
+        raise ConfigError("contact", f"the mesh source has no physical group of dimension {dim - 1}")
+    return _choice(value, "contact", facet_groups)
 
 
 def _problem(raw, path, dim):
@@ -507,6 +638,7 @@ def to_dict(cfg):
     """The resolved config as plain YAML data, every default filled in; `from_dict` reads it back."""
     out = _plain(cfg)
     out.pop("text", None)
+    out["mesh"] = _mesh_dict(cfg.mesh)
     out = {"study": out.pop("study"), "description": out.pop("description"), **out}
     if cfg.epsilon.law != "power":
         out["epsilon"].pop("exponent")  # only meaningful with law: power (rejected otherwise)
@@ -580,6 +712,19 @@ def canonical(cfg):
 def fingerprint(cfg):
     """sha256 of canonical(cfg): equal for configs that compute the same study."""
     return hashlib.sha256(json.dumps(canonical(cfg), sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _mesh_dict(mesh):
+    """The mesh keys its kind accepts (groups are read from the source, not given)."""
+    if mesh.kind in MESH_KINDS:
+        return {"kind": mesh.kind, "refinements": list(mesh.refinements), "diagonal": mesh.diagonal}
+    out = {"kind": mesh.kind}
+    out.update({"geometry": mesh.geometry, "sizes": list(mesh.sizes)} if mesh.kind == "gmsh" else
+               {"path": list(mesh.path)})
+    if mesh.refine == "uniform":
+        out.update(refine=mesh.refine, refinements=list(mesh.refinements))
+    out["cache"] = mesh.cache
+    return out
 
 
 def _plain(value):

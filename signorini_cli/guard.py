@@ -127,7 +127,7 @@ def _first_line(err):
 def status(cfg, levels):
     """'complete'; 'failed at level k: REASON' when a level did not converge and on_failure is stop;
     else 'running (k of n levels done)'."""
-    total = len(cfg.mesh.refinements)
+    total = len(cfg.mesh.levels)
     if levels and not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
         return f"failed at level {levels[-1].index}: {levels[-1].outcome.reason}"
     if len(levels) == total:

@@ -1,5 +1,5 @@
 """Meshes of a refinement family, with Γ_C and Γ_D tagged, and their measured size h."""
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
@@ -22,10 +22,15 @@ class Domain:
     h: float
     h_min: float
     n: int
+    columns: dict = field(default_factory=dict)  # the mesh's own per-level table columns (gmsh/file kinds)
 
 
 def build(mesh_cfg, contact, n, comm=MPI.COMM_WORLD):
-    """The level with `n` cells per side, Γ_C = the face named `contact`."""
+    """The level with `n` cells per side, Γ_C = the face named `contact`; for gmsh/file kinds `n` is
+    the level's entry of mesh.levels and Γ_C the physical group named `contact`."""
+    if mesh_cfg.kind in ("gmsh", "file"):
+        from . import geometries  # imports meshes itself; gmsh is imported only on this branch
+        return geometries.build(mesh_cfg, contact, n, comm)
     if mesh_cfg.kind == "unit_square":
         diagonal = getattr(dolfinx.mesh.DiagonalType, mesh_cfg.diagonal)
         msh = dolfinx.mesh.create_unit_square(comm, n, n, diagonal=diagonal)
@@ -36,6 +41,16 @@ def build(mesh_cfg, contact, n, comm=MPI.COMM_WORLD):
     tags = tag_boundary(msh, faces[contact])
     h, h_min = cell_sizes(msh)
     return Domain(msh, tags, h, h_min, n)
+
+
+def reference_domain(mesh_cfg, contact, refinements, comm=MPI.COMM_WORLD):
+    """(Domain, nested): the finest level refined uniformly `refinements` more times, and whether every
+    level of the family is nested in it (then moving a level onto it is exact)."""
+    if mesh_cfg.kind in ("gmsh", "file"):
+        from . import geometries
+        return geometries.reference_domain(mesh_cfg, contact, refinements, comm)
+    n = mesh_cfg.refinements[-1] * 2**refinements
+    return build(mesh_cfg, contact, n, comm), not any(n % k for k in mesh_cfg.refinements)
 
 
 def tag_boundary(msh, face):

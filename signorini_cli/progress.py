@@ -4,6 +4,7 @@ import time
 
 import numpy as np
 
+from .config import MESH_KINDS
 from .report import norms
 
 NEWTON_AFTER_S = 3.0  # a level running longer than this shows its Newton iterations as they come
@@ -16,7 +17,8 @@ class Progress:
     `monitor` is a SNES monitor."""
 
     def __init__(self, cfg, show=True, stream=None, newton_after=NEWTON_AFTER_S, clock=time.perf_counter):
-        self.refinements, self.dim = cfg.mesh.refinements, cfg.dimension
+        self.refinements, self.dim = cfg.mesh.levels, cfg.dimension
+        self.mesh = cfg.mesh
         self.show = show
         self.stream = stream or sys.stderr
         self.newton_after, self.clock = newton_after, clock
@@ -26,7 +28,7 @@ class Progress:
         """Print the line of the level just finished (the last row) with the time left for the others."""
         self.level, self.started = len(rows), self.clock()
         if self.show:
-            eta = remaining_time(rows, self.refinements[len(rows):], self.dim)
+            eta = remaining_time(rows, *levels_left(self.mesh, rows, self.dim))
             left = f"  ~{format_duration(eta)} left" if eta else ""
             self._print(level_line(rows[-1]) + left)
 
@@ -35,7 +37,8 @@ class Progress:
         elapsed = self.clock() - self.started
         if self.show and elapsed > self.newton_after:
             n = self.refinements[self.level] if self.level < len(self.refinements) else "?"
-            self._print(f"  level {self.level} (N={n}): Newton iteration {its}, "
+            label = f"N={n}" if self.mesh.kind in MESH_KINDS else f"{self.mesh.level_key}: {n}"
+            self._print(f"  level {self.level} ({label}): Newton iteration {its}, "
                         f"|F| = {fnorm:.3e}  ({format_duration(elapsed)})")
 
     def _print(self, line):
@@ -55,6 +58,22 @@ def level_line(row):
             parts.append(f"{norm} {row[norm]:.3e}" + (f" (rate {rate:.2f})" if rate is not None else ""))
     parts.append(format_duration(row["time_s"]))
     return "  ".join(parts)
+
+
+def levels_left(mesh, rows, dim):
+    """(N of the levels still to come, dimension) for remaining_time. gmsh/file meshes have N = cells, so
+    their coming levels' cells are predicted from the last level's (cells ~ size^-d, or 2^d times per
+    refinement) with dimension 1; a list of .msh files predicts nothing."""
+    done = len(rows)
+    if mesh.kind in MESH_KINDS:
+        return mesh.refinements[done:], dim
+    if mesh.refine == "uniform":
+        growth = [2.0 ** (dim * (k - mesh.refinements[done - 1])) for k in mesh.refinements[done:]]
+    elif mesh.kind == "gmsh":
+        growth = [(mesh.sizes[done - 1] / size) ** dim for size in mesh.sizes[done:]]
+    else:
+        return (), dim
+    return tuple(rows[-1]["N"] * g for g in growth), 1
 
 
 def remaining_time(rows, refinements_left, dim):

@@ -23,7 +23,7 @@ class Reference:
 
     def __init__(self, cfg, comm=MPI.COMM_WORLD):
         self.cfg, self.comm = cfg, comm
-        self.n = cfg.mesh.refinements[-1] * 2 ** cfg.verification.reference_refinements
+        self.n = None  # the reference level's N, once built
         self.domain = None
         self.solutions = {}  # eps -> (u_ref, converged)
 
@@ -36,9 +36,11 @@ class Reference:
     def mesh(self):
         """The reference level's Domain, built on first use."""
         if self.domain is None:
-            self.domain = meshes.build(self.cfg.mesh, self.cfg.contact, self.n, self.comm)
-            if any(self.n % n for n in self.cfg.mesh.refinements):
-                logger.warning("reference N=%d is not a multiple of every level's N: the transfer to it "
+            self.domain, nested = meshes.reference_domain(self.cfg.mesh, self.cfg.contact,
+                                                          self.cfg.verification.reference_refinements, self.comm)
+            self.n = self.domain.n
+            if not nested:
+                logger.warning("reference N=%d: not every level is nested in it, the transfer to it "
                                "interpolates instead of being exact", self.n)
         return self.domain
 

@@ -5,6 +5,10 @@ from pathlib import Path
 
 FORMATS = {"h": ".4e", "epsilon": ".3e", "time_s": ".2f"}
 SHOWN = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its")
+# gmsh/file meshes: their size spread and Γ_C, as in the CSV
+MESH_FORMATS = {"h_min": ".4e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f"}
+FORMATS.update(MESH_FORMATS)
+SHOWN += tuple(MESH_FORMATS)
 SPEC_ORDER = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
               "L2", "rate_L2", "H1", "rate_H1", "time_s")
 # norm column -> (Markdown, LaTeX math) label; a column missing here is shown by its name

@@ -48,7 +48,7 @@ def check_memory(cfg, comm):
 def peak_levels(cfg):
     """Cells per side of the meshes alive at the peak: the finest level, and for a data-only scene
     the reference solution's mesh, verification.reference_refinements times finer."""
-    finest = cfg.mesh.refinements[-1]
+    finest = cfg.mesh.levels[-1]  # gmsh/file levels: no size known before meshing
     verification = getattr(cfg, "verification", None)
     if cfg.problem.exact is None and verification is not None and verification.reference_refinements > 0:
         return [finest, finest * 2**verification.reference_refinements]

@@ -36,7 +36,7 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
         return levels  # the study had already stopped there
     verifier = verification.Verifier(cfg, comm)
     resume_verifier(cfg, done, comm, verifier)
-    for index, n in enumerate(cfg.mesh.refinements):
+    for index, n in enumerate(cfg.mesh.levels):
         if index < len(done):
             continue
         levels.append(solve_level(cfg, index, n, comm, monitor, verifier))
@@ -52,12 +52,13 @@ def resume_verifier(cfg, done, comm, verifier):
     """A resumed study solves its last converged level again, unrecorded: the successive differences
     (measure `diff`) of the next level need its u_h."""
     converged = [lv for lv in done if lv.outcome.converged]
-    if converged and len(done) < len(cfg.mesh.refinements) and "diff" in verifier.measures:
-        solve_level(cfg, converged[-1].index, converged[-1].n, comm, verifier=verifier)
+    if converged and len(done) < len(cfg.mesh.levels) and "diff" in verifier.measures:
+        index = converged[-1].index
+        solve_level(cfg, index, cfg.mesh.levels[index], comm, verifier=verifier)
 
 
 def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None):
-    """Build, solve and measure the level with n cells per side."""
+    """Build, solve and measure the level with n cells per side (or the level's entry of mesh.levels)."""
     start = time.perf_counter()
     domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
@@ -76,7 +77,8 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None)
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     if cfg.output.fields:
         fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
-    level = Level(index, n, domain.h, dofs, eps_value, outcome, errors, elapsed)
+    level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, elapsed,
+                  dict(domain.columns))
     if verifier is not None:  # Γ_C measures, reference errors (issue 4); not part of time_s
         verifier.measure(level, domain, u_h, forms)
     return level

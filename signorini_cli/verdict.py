@@ -3,6 +3,7 @@ per scalar quantity the observed order, Richardson extrapolation and GCI; the us
 from dataclasses import asdict, dataclass
 
 from . import rates
+from .config import MESH_KINDS
 
 AGREES, BELOW, NOT_COVERED, NO_RATE = "agrees", "below theory", "not covered", "no rate"
 ROUND_OFF = 1e-12  # an observed rate equal to proven - tolerance agrees, whatever the last bit says
@@ -73,10 +74,13 @@ def notes(cfg):
     v = cfg.verification
     if cfg.problem.exact is not None or v.reference_refinements == 0:
         return ()
-    n_ref = cfg.mesh.refinements[-1] * 2 ** v.reference_refinements
+    if cfg.mesh.kind in MESH_KINDS:
+        where = f"at N={cfg.mesh.refinements[-1] * 2 ** v.reference_refinements}"
+    else:  # gmsh/file meshes: N counts cells, known once the finest level is built
+        where = f"on {2 ** (cfg.dimension * v.reference_refinements)} times the finest level's cells"
     eps = ("each level's own eps" if v.reference_epsilon == "per_level"
            else "one eps, the law's on the reference mesh")
-    return (f"*_ref: errors against a reference solution at N={n_ref} ({v.reference_refinements} uniform "
+    return (f"*_ref: errors against a reference solution {where} ({v.reference_refinements} uniform "
             f"refinement{'s' if v.reference_refinements > 1 else ''} of the finest level), solved at {eps}",)
 
 

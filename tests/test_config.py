@@ -4,7 +4,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from signorini_cli import config
+from signorini_cli import config, geometry_files
 from conftest import BASE, merge
 
 
@@ -254,3 +254,79 @@ def test_yaml_merge_keys_are_not_duplicates():
 def test_override_value_not_yaml():
     with pytest.raises(config.ConfigError, match=r"^--set mesh.refinements: '\[4' is not a YAML value"):
         config.loads(yaml.safe_dump(BASE), ["mesh.refinements=[4"])
+
+
+HALF_DISK = {"kind": "gmsh", "geometry": "half_disk", "sizes": [0.2, 0.1]}
+GEOMETRY_EXAMPLE = geometry_files.GEOMETRY_DIR / "examples" / "quarter_annulus.msh"
+
+
+def load_mesh(mesh, **changes):
+    """BASE with `mesh` in place of its unit square (replaced, not merged), Γ_C = the group `contact`."""
+    raw = merge(BASE, dict({"contact": "contact", "dimension": None}, **changes))
+    raw["mesh"] = mesh
+    return config.loads(yaml.safe_dump(raw))
+
+
+def test_gmsh_mesh_levels_and_dimension():
+    cfg = load_mesh(HALF_DISK)
+    assert cfg.dimension == 2 and cfg.mesh.levels == (0.2, 0.1) and cfg.mesh.level_key == "sizes"
+    nested = load_mesh({"kind": "gmsh", "geometry": "half_ball", "sizes": [0.4], "refine": "uniform",
+                        "refinements": [0, 2]}, problem={"exact": "x*z"})
+    assert nested.dimension == 3 and nested.mesh.levels == (0, 2) and nested.mesh.level_key == "refinements"
+    assert dict(nested.mesh.groups) == {"contact": 2, "dirichlet": 2, "domain": 3}
+
+
+@pytest.mark.parametrize("mesh, changes, message", [
+    pytest.param({"geometry": "disc"}, {}, "mesh.geometry: 'disc' is neither a shipped geometry", id="geometry"),
+    pytest.param({"sizes": [0.1, 0.2]}, {}, r"mesh.sizes: must decrease", id="sizes-increasing"),
+    pytest.param({"sizes": [0.1, -0.05]}, {}, r"mesh.sizes\[1\]: must be > 0", id="size-negative"),
+    pytest.param({"refine": "uniform", "refinements": [0, 1]}, {},
+                 "mesh.sizes: refine: uniform refines one base mesh, got 2", id="refine-two-sizes"),
+    pytest.param({"sizes": [0.2], "refine": "uniform"}, {}, "mesh.refinements: must be a non-empty list",
+                 id="refine-no-refinements"),
+    pytest.param({"sizes": [0.2], "refine": "uniform", "refinements": [1, 1]}, {},
+                 "mesh.refinements: must increase", id="refinements-repeat"),
+    pytest.param({"refinements": [0, 1]}, {}, "mesh.refinements: only meaningful with refine: uniform",
+                 id="refinements-without-refine"),
+    pytest.param({"refine": "adaptive"}, {}, "mesh.refine: 'adaptive' is not one of none, uniform", id="refine"),
+    pytest.param({"diagonal": "left"}, {}, "mesh.diagonal: unknown key in mesh", id="diagonal"),
+    pytest.param({}, {"contact": "bottom"}, "contact: 'bottom' is not one of contact, dirichlet", id="group"),
+    pytest.param({}, {"dimension": 3}, "mesh.kind: gmsh is 2-D but dimension is 3", id="dimension"),
+])
+def test_gmsh_mesh_rejection_names_key(mesh, changes, message):
+    with pytest.raises(config.ConfigError, match="^" + message):
+        load_mesh(dict(HALF_DISK, **mesh), **changes)
+
+
+def test_file_mesh_missing_names_key():
+    with pytest.raises(config.ConfigError, match="^mesh.path: no such mesh file: 'nowhere.msh'"):
+        load_mesh({"kind": "file", "path": "nowhere.msh"})
+    with pytest.raises(config.ConfigError, match=r"^mesh.path\[1\]: no such mesh file"):
+        load_mesh({"kind": "file", "path": [str(GEOMETRY_EXAMPLE), "nowhere.msh"]})
+
+
+@pytest.mark.parametrize("mesh", [
+    pytest.param(HALF_DISK, id="gmsh-sizes"),
+    pytest.param(dict(HALF_DISK, sizes=[0.2], refine="uniform", refinements=[0, 1]), id="gmsh-nested"),
+    pytest.param({"kind": "file", "path": str(GEOMETRY_EXAMPLE)}, id="file"),
+])
+def test_gmsh_mesh_to_dict_round_trip(mesh):
+    contact = "inner_arc" if mesh["kind"] == "file" else "contact"
+    resolved = config.to_dict(load_mesh(mesh, contact=contact))
+    assert config.to_dict(config.from_dict(resolved)) == resolved
+    assert "groups" not in resolved["mesh"] and "diagonal" not in resolved["mesh"]
+
+
+def test_gmsh_levels_compared_need_nested_family():
+    with pytest.raises(config.ConfigError, match="^mesh.refine: levels meshed one by one are not nested"):
+        load_mesh(HALF_DISK, problem={"exact": None, "f": "10"})
+    nested = load_mesh(dict(HALF_DISK, sizes=[0.2], refine="uniform", refinements=[0, 1]),
+                       problem={"exact": None, "f": "10"})
+    assert nested.problem.exact is None
+    with pytest.raises(config.ConfigError, match="^mesh.refine: levels meshed one by one"):
+        load_mesh(HALF_DISK, verification={"measures": ["diff"]})
+
+
+def test_gmsh_mesh_only_for_refinement_studies():
+    with pytest.raises(config.ConfigError, match="^mesh.kind: gmsh meshes serve refinement studies, not study_type"):
+        load_mesh(HALF_DISK, study_type="signorini", problem=SIGNORINI_PROBLEM)

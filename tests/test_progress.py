@@ -2,8 +2,10 @@
 import io
 
 import pytest
+import yaml
 
-from signorini_cli import progress
+from signorini_cli import config, progress
+from conftest import BASE, merge
 
 
 def row(level, n, seconds, converged=True):
@@ -48,7 +50,8 @@ def test_remaining_time_extrapolates_in_dofs():
 
 class Config:
     class mesh:
-        refinements = (8, 16, 32)
+        kind = "unit_square"
+        refinements = levels = (8, 16, 32)
     dimension = 2
 
 
@@ -77,3 +80,17 @@ def test_hidden_progress_prints_nothing():
                                            (7380, "2 h 03 min")])
 def test_format_duration(seconds, text):
     assert progress.format_duration(seconds) == text
+
+
+@pytest.mark.parametrize("mesh, expected", [
+    pytest.param({"kind": "gmsh", "geometry": "half_disk", "sizes": [0.2, 0.1, 0.05]}, (400.0, 1600.0),
+                 id="gmsh-sizes"),
+    pytest.param({"kind": "gmsh", "geometry": "half_disk", "sizes": [0.2], "refine": "uniform",
+                  "refinements": [0, 1, 3]}, (400.0, 6400.0), id="gmsh-nested"),
+])
+def test_levels_left_gmsh_predicts_cells(mesh, expected):
+    raw = merge(BASE, {"contact": "contact"})
+    raw["mesh"] = mesh
+    cfg = config.loads(yaml.safe_dump(raw))
+    # level 0 had 100 cells: 2-D cells grow as size^-2, or 4 times per refinement; N is cells: dimension 1
+    assert progress.levels_left(cfg.mesh, [row(0, 100, 1.0)], 2) == (expected, 1)
