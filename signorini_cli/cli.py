@@ -129,6 +129,9 @@ def _prepare(cfg, args):
     from . import resources, resume
     if not args.force:
         resources.check_memory(cfg, MPI.COMM_WORLD)
+    if cfg.mesh.kind == "gmsh":  # what gmsh cannot mesh is bad input, found before any level runs
+        from . import geometries
+        list(geometries.mesh_levels(cfg, MPI.COMM_WORLD))
     if args.resume and cfg.study_type != "refinement":
         raise ConfigError("--resume", f"study_type {cfg.study_type} runs from the start; use --force")
     return resume.finished_levels(cfg, MPI.COMM_WORLD) if args.resume else []

@@ -67,6 +67,7 @@ class Mesh:
     refine: str = "none"        # gmsh/file: uniform = levels are refinements of one base mesh (nested)
     cache: str = geometry_files.CACHE_DIR
     groups: tuple = ()          # gmsh/file: (name, dimension) of the source's named physical groups
+    source_hash: str = ""       # gmsh/file: of the .geo/.msh contents, so a changed file changes the config hash
 
     @property
     def level_key(self):
@@ -315,7 +316,7 @@ def _geometry_mesh(raw, path):
     return Mesh(kind, refinements, geometry=geometry, sizes=entries if kind == "gmsh" else (),
                 path=entries if kind == "file" else (), refine=refine,
                 cache=_string(raw.get("cache", geometry_files.CACHE_DIR), f"{path}.cache"),
-                groups=_groups(sources, f"{path}.{source}"))
+                groups=_groups(sources, f"{path}.{source}"), source_hash=geometry_files.source_hash(sources))
 
 
 def _geometry_file(name, path):

@@ -103,7 +103,7 @@ def generate(geo, size, dim, target):
         gmsh.model.mesh.generate(dim)
         gmsh.write(str(target))
     finally:
-        gmsh.finalize()
+        _finalize(gmsh)
 
 
 def read_msh(path, gdim, comm=MPI.COMM_WORLD):
@@ -123,7 +123,7 @@ def read_msh(path, gdim, comm=MPI.COMM_WORLD):
         msh, _, facet_groups = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
     finally:
         if comm.rank == 0:
-            gmsh.finalize()
+            _finalize(gmsh)
     return msh, facet_groups, groups
 
 
@@ -133,6 +133,13 @@ def _import_gmsh():
     import gmsh
     signal.signal(signal.SIGINT, handler)
     return gmsh
+
+
+def _finalize(gmsh):
+    """gmsh.finalize, keeping the SIGINT handler in place (finalize puts back the one gmsh found on import)."""
+    handler = signal.getsignal(signal.SIGINT)
+    gmsh.finalize()
+    signal.signal(signal.SIGINT, handler)
 
 
 def _on_rank0(comm, work, what):
@@ -193,17 +200,26 @@ def contact_quasi_uniformity(domain):
 
 # --- make meshes ---------------------------------------------------------------------------------
 
+def mesh_levels(cfg, comm=MPI.COMM_WORLD):
+    """Mesh a gmsh config's levels (the base mesh with refine: uniform) into its cache, yielding
+    (cache file, generated) per mesh; what gmsh cannot mesh is a ConfigError naming mesh.geometry."""
+    from .config import ConfigError
+    geo = geometry_files.geometry_path(cfg.mesh.geometry)
+    for size in cfg.mesh.sizes:
+        try:
+            yield mesh_file(geo, size, cfg.dimension, cfg.mesh.cache, comm)
+        except GeometryError as err:
+            raise ConfigError("mesh.geometry", str(err)) from None
+
+
 def cache_configs(paths, comm=MPI.COMM_WORLD):
-    """Mesh the gmsh levels (the base mesh with refine: uniform) of each config into its cache;
-    yields (config path, cache file, generated) per mesh. Other mesh kinds need nothing."""
+    """mesh_levels of each gmsh config: yields (config path, cache file, generated). Other mesh kinds
+    need nothing."""
     from . import config
     for path in paths:
         cfg = config.load(path)
-        if cfg.mesh.kind != "gmsh":
-            continue
-        geo = geometry_files.geometry_path(cfg.mesh.geometry)
-        for size in cfg.mesh.sizes:
-            yield (path, *mesh_file(geo, size, cfg.dimension, cfg.mesh.cache, comm))
+        if cfg.mesh.kind == "gmsh":
+            yield from ((path, *entry) for entry in mesh_levels(cfg, comm))
 
 
 def main(argv=None):
@@ -213,7 +229,7 @@ def main(argv=None):
     try:
         for path, msh, generated in cache_configs(sys.argv[1:] if argv is None else argv):
             print(f"{'meshed' if generated else 'cached'}  {msh}  ({path})")
-    except (ConfigError, OSError, GeometryError) as err:
+    except (ConfigError, OSError) as err:
         print(f"signorini meshes: error: {err}", file=sys.stderr)
         return 2
     return 0

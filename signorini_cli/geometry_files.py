@@ -47,6 +47,14 @@ def _msh_physical_names(data):
     return groups
 
 
+def source_hash(paths):
+    """sha256 (hex, 16 digits) of the files' contents: a changed geometry or mesh file changes it."""
+    digest = hashlib.sha256()
+    for path in paths:
+        digest.update(Path(path).read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def cache_file(cache_dir, geo, size):
     """The cache entry of `geo` meshed at `size`: named by geometry and size, keyed by a hash of the
     .geo text, so a changed geometry file gets a new entry instead of its stale mesh."""

@@ -330,3 +330,11 @@ def test_gmsh_levels_compared_need_nested_family():
 def test_gmsh_mesh_only_for_refinement_studies():
     with pytest.raises(config.ConfigError, match="^mesh.kind: gmsh meshes serve refinement studies, not study_type"):
         load_mesh(HALF_DISK, study_type="signorini", problem=SIGNORINI_PROBLEM)
+
+
+def test_gmsh_geometry_change_changes_fingerprint(tmp_path):
+    geo = tmp_path / "square.geo"
+    geo.write_text(geometry_files.geometry_path("unit_square").read_text())
+    before = config.fingerprint(load_mesh(dict(HALF_DISK, geometry=str(geo))))
+    geo.write_text(geo.read_text().replace("Point(3) = {1, 1, 0};", "Point(3) = {1, 2, 0};"))
+    assert config.fingerprint(load_mesh(dict(HALF_DISK, geometry=str(geo)))) != before  # resume refuses

@@ -14,7 +14,7 @@ import yaml
 from mpi4py import MPI
 
 from dolfinx import fem
-from signorini_cli import config, geometries, geometry_files, meshes, refinement, study
+from signorini_cli import cli, config, geometries, geometry_files, meshes, refinement, study
 from signorini_cli.meshes import CONTACT, DIRICHLET
 from conftest import BASE, merge
 
@@ -158,6 +158,19 @@ def test_cache_gmsh_failure_raises(tmp_path):
         geometries.mesh_file(geo, 0.5, 2, tmp_path)
 
 
+def test_gmsh_failure_is_bad_input_before_any_level(tmp_path, capsys):
+    (tmp_path / "bad.geo").write_text('Point(1) = {0, 0, 0;\nPhysical Curve("contact") = {1};\n'
+                                      'Physical Surface("domain") = {1};\n')
+    raw = merge(BASE, {"contact": "contact", "dimension": None, "output": {"dir": str(tmp_path / "out")}})
+    raw["mesh"] = {"kind": "gmsh", "geometry": str(tmp_path / "bad.geo"), "sizes": [0.5], "cache": str(tmp_path)}
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    assert cli.main(["run", str(path), "--quiet"]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.startswith(f"signorini: error: {path}: mesh.geometry: meshing ") and "syntax error" in err
+    assert err.count("\n") == 1 and not (tmp_path / "out").exists()
+
+
 # --- .msh files --------------------------------------------------------------------------------------
 
 def convert(source, target, version):
@@ -170,7 +183,7 @@ def convert(source, target, version):
         gmsh.option.setNumber("Mesh.MshFileVersion", version)
         gmsh.write(str(target))
     finally:
-        gmsh.finalize()
+        geometries._finalize(gmsh)
 
 
 @pytest.mark.parametrize("version", [4.1, 2.2])
