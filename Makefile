@@ -75,3 +75,8 @@ LIMIT_CONFIGS := $(sort $(wildcard configs/limit/*.yaml))
 limit: setup
 	@set -e; for c in $(LIMIT_CONFIGS); do echo "== $$c"; $(SIGNORINI) run $$c --force; done
 	$(PY) -m signorini_cli.limit_docs $(LIMIT_CONFIGS) --out docs/limit.md
+
+.PHONY: stiff
+# the stiff suite, the regular studies with strategy auto, a delta sweep and a conditioning sweep -> docs/stability.md
+stiff: setup
+	$(PY) scripts/stability.py

@@ -20,9 +20,15 @@ FACES = {2: ("left", "right", "bottom", "top"),
          3: ("left", "right", "front", "back", "bottom", "top")}
 DIAGONALS = ("right", "left", "crossed")
 POSITIVE_PARTS = ("exact", "smooth")
+# smoothing of [u]_+: delta^2/eps is the flux error off contact, so delta ~ h sqrt(eps) keeps it O(h^2)
+# for every eps; docs/stability.md (make stiff) measures the laws this was chosen from
+DEFAULT_DELTA = "1e-2*h*sqrt(eps)"
 LINEAR_SOLVERS = ("auto", "direct", "iterative")  # auto: direct in 2-D, iterative in 3-D
 LINE_SEARCHES = ("bt", "basic", "l2", "cp")
 ON_FAILURE = ("continue", "stop")
+STRATEGIES = ("plain", "nested", "continuation", "auto")
+METHODS = ("newtonls", "newtontr")  # PETSc SNES types: line-search Newton, trust-region Newton
+PRECONDITIONERS = ("boomeramg", "gamg")  # algebraic multigrid for linear: iterative
 MAX_ALPHA_3D = 3.0  # the paper's condition (5): 1 <= alpha <= 3 when d = 3
 COORDINATES = {2: ("x", "y"), 3: ("x", "y", "z")}
 # verification.measures: what a level measures beyond L2/H1 (issue 4; README "Verification")
@@ -97,20 +103,37 @@ class Problem:
 
 @dataclass(frozen=True)
 class PositivePart:
-    """[u]_+ exactly, or smoothed as (u + sqrt(u^2 + delta^2))/2 with delta an expression in h."""
+    """[u]_+ exactly, or smoothed as (u + sqrt(u^2 + delta^2))/2 with delta an expression in h, eps."""
     kind: str = "exact"
     delta: expressions.Expression = None
 
 
 @dataclass(frozen=True)
+class Continuation:
+    """eps-continuation: from max(start, eps) down to eps, first step eps_{k+1} = factor * eps_k."""
+    start: float = 1.0
+    factor: float = 0.1
+    max_steps: int = 20
+
+
+@dataclass(frozen=True)
 class Solver:
-    rtol: float = 1e-10
+    rtol: float = 1e-10  # success: ||F|| <= rtol * (norm of the load without the penalty term)
     atol: float = 1e-12
     max_it: int = 50
     linear: str = "auto"
     line_search: str = "bt"
     on_failure: str = "continue"
     petsc_options: tuple = ()  # (name, value) pairs passed to PETSc under the study's prefix
+    strategy: str = "auto"
+    method: str = "newtonls"
+    stol: float = 1e-7  # success: Newton correction <= stol * ||u_h|| (README, "Robust solves")
+    preconditioner: str = "boomeramg"
+    linear_rtol: float = 1e-10
+    linear_fallback: bool = True
+    inexact: bool = False  # Eisenstat-Walker forcing of the iterative linear tolerance
+    continuation: Continuation = Continuation()
+    condition_max_dofs: int = 0  # estimate cond(J) on levels with at most this many dofs
 
 
 @dataclass(frozen=True)
@@ -400,17 +423,17 @@ def _positive_part(raw, path):
         if "delta" in raw:
             raise ConfigError(f"{path}.delta", "only meaningful with kind: smooth")
         return PositivePart()
-    delta = _expression(raw.get("delta", "1e-2*h**2"), f"{path}.delta", ("h", "eps"))
+    delta = _expression(raw.get("delta", DEFAULT_DELTA), f"{path}.delta", ("h", "eps"))
     return PositivePart(kind, delta)
 
 
 def _solver(raw, path):
     _keys(raw, path, optional=("rtol", "atol", "max_it", "linear", "line_search", "on_failure",
-                               "petsc_options"))
+                               "petsc_options") + SOLVER_STRATEGY_KEYS)
     opts = raw.get("petsc_options", {}) or {}
     if not isinstance(opts, dict):
         raise ConfigError(f"{path}.petsc_options", "must be a mapping of PETSc option names to values")
-    return Solver(rtol=_number(raw.get("rtol", 1e-10), f"{path}.rtol", positive=True),
+    solver = Solver(rtol=_number(raw.get("rtol", 1e-10), f"{path}.rtol", positive=True),
                   atol=_number(raw.get("atol", 1e-12), f"{path}.atol", positive=True),
                   max_it=_integer(raw.get("max_it", 50), f"{path}.max_it", low=1),
                   linear=_choice(raw.get("linear", "auto"), f"{path}.linear", LINEAR_SOLVERS),
@@ -418,6 +441,39 @@ def _solver(raw, path):
                   on_failure=_choice(raw.get("on_failure", "continue"), f"{path}.on_failure", ON_FAILURE),
                   petsc_options=tuple((str(k).lstrip("-"), "" if v is None else str(v))
                                       for k, v in opts.items()))
+    return dataclasses.replace(solver, **_solver_strategy(raw, path))
+
+
+SOLVER_STRATEGY_KEYS = ("strategy", "method", "stol", "preconditioner", "linear_rtol", "linear_fallback",
+                        "inexact", "continuation", "condition_max_dofs")
+
+
+def _solver_strategy(raw, path):
+    """The robustness keys of solver: (issue 5), as Solver field values."""
+    method = _choice(raw.get("method", "newtonls"), f"{path}.method", METHODS)
+    if method == "newtontr" and "line_search" in raw:
+        raise ConfigError(f"{path}.line_search", "only meaningful with method: newtonls")
+    return dict(strategy=_choice(raw.get("strategy", "auto"), f"{path}.strategy", STRATEGIES),
+                method=method,
+                stol=_number(raw.get("stol", 1e-7), f"{path}.stol", low=0.0),
+                preconditioner=_choice(raw.get("preconditioner", "boomeramg"), f"{path}.preconditioner",
+                                       PRECONDITIONERS),
+                linear_rtol=_number(raw.get("linear_rtol", 1e-10), f"{path}.linear_rtol", positive=True),
+                linear_fallback=_boolean(raw.get("linear_fallback", True), f"{path}.linear_fallback"),
+                inexact=_boolean(raw.get("inexact", False), f"{path}.inexact"),
+                continuation=_continuation(raw.get("continuation", {}), f"{path}.continuation"),
+                condition_max_dofs=_integer(raw.get("condition_max_dofs", 0), f"{path}.condition_max_dofs",
+                                            low=0))
+
+
+def _continuation(raw, path):
+    _keys(raw, path, optional=("start", "factor", "max_steps"))
+    factor = _number(raw.get("factor", 0.1), f"{path}.factor", positive=True)
+    if factor >= 1:
+        raise ConfigError(f"{path}.factor", f"must be < 1 (eps decreases), got {factor:g}")
+    return Continuation(start=_number(raw.get("start", 1.0), f"{path}.start", positive=True),
+                        factor=factor,
+                        max_steps=_integer(raw.get("max_steps", 20), f"{path}.max_steps", low=1))
 
 
 def _output(raw, path):
@@ -614,6 +670,12 @@ def _boolean(value, path):
     return value
 
 
+def _boolean(value, path):
+    if not isinstance(value, bool):
+        raise ConfigError(path, f"must be true or false, got {_show(value)}")
+    return value
+
+
 def _string(value, path, empty=False):
     if not isinstance(value, str) or (not empty and not value.strip()):
         raise ConfigError(path, f"must be a non-empty string, got {_show(value)}")
@@ -648,6 +710,8 @@ def to_dict(cfg):
             out["verification"].pop(key)
     if cfg.expect is not None:
         out["expect"]["rates"] = dict(cfg.expect.rates)
+    if cfg.solver.method != "newtonls":  # the line search is for newtonls only (rejected otherwise)
+        out["solver"].pop("line_search")
     _limit_to_dict(cfg, out)
     return out
 

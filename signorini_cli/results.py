@@ -187,5 +187,15 @@ def _write_level(group, lv, row, np):
         if value is not None:
             group.attrs[column] = value
     group.create_dataset("residuals", data=np.array(lv.outcome.residuals, dtype=float))
+    _write_solves(group, lv.outcome.steps, np)
     for norm, value in lv.errors.items():  # raw errors, also of a level that did not converge
         group.attrs[f"measured_{norm}"] = value
+
+
+def _write_solves(group, steps, np):
+    """One entry per SNES solve of the level (attempts, continuation steps, linear fallback), in order:
+    its eps, Newton iterations and reason; `residuals` holds their histories one after the other."""
+    if steps:
+        group.create_dataset("solve_eps", data=np.array([s[0] for s in steps], dtype=float))
+        group.create_dataset("solve_newton_its", data=np.array([s[1] for s in steps], dtype=int))
+        group.create_dataset("solve_reason", data=[s[2].encode() for s in steps])

@@ -1,8 +1,12 @@
-"""Newton's method for one level: PETSc SNES on the residual and Jacobian forms."""
+"""Newton's method for one level: PETSc SNES on the residual and Jacobian forms, with a success test
+that cannot pass far from the solution, NaN/Inf detection, and a Jacobian condition estimate."""
+import dataclasses
 import itertools
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
+import ufl
 from petsc4py import PETSc
 
 from dolfinx import fem
@@ -10,39 +14,128 @@ from dolfinx.fem import petsc as fem_petsc
 
 REASONS = {getattr(PETSc.SNES.ConvergedReason, name): name
            for name in dir(PETSc.SNES.ConvergedReason) if name.isupper()}
+CONVERGED_RESIDUAL = PETSc.SNES.ConvergedReason.CONVERGED_FNORM_ABS
+CONVERGED_STEP = PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
+DIVERGED_NAN = PETSc.SNES.ConvergedReason.DIVERGED_FNORM_NAN
+DIVERGED_MAX_IT = PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
+# failures after which u_k may sit at a root that ||F|| cannot show below its round-off floor:
+# the line search (newtonls) or the trust region (newtontr) found no decrease from u_k
+STALLED = {PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH, PETSc.SNES.ConvergedReason.DIVERGED_TR_DELTA,
+           PETSc.SNES.ConvergedReason.DIVERGED_INNER}
+TR_RADIUS = 0.2  # newtontr's first radius, relative to max(||u_0||, sqrt(dofs)) (PETSc: 0.2 ||u_0||)
+LINEAR_SOLVE_FAILED = "DIVERGED_LINEAR_SOLVE"
 _prefixes = itertools.count()
 
 
 @dataclass(frozen=True)
 class Outcome:
-    """What Newton did: iterations, PETSc's reason, residual history; never raises on divergence."""
+    """What Newton did: iterations, PETSc's reason, residual history; never raises on divergence.
+    A level solved in several SNES solves (attempts, continuation) sums their counts; `steps` holds
+    (eps, newton_its, reason) of each solve in order."""
     converged: bool
     reason: str
     newton_its: int
     linear_its: int
     residuals: tuple
+    # diagnostics, kept in the table's stability columns and study.h5, not part of the outcome's identity
+    # (a level read back from study.h5 by --resume compares equal without them)
+    continuation_steps: int = field(default=0, compare=False)
+    linear_fallback: bool = field(default=False, compare=False)
+    steps: tuple = field(default=(), compare=False)
+    correction: float = field(default=None, compare=False)  # last Newton correction / ||u_h||: the error estimate
 
 
-def petsc_options(solver_cfg, dim):
-    """The PETSc options a solver config stands for; the user's petsc_options come last and win.
-    linear: auto is MUMPS LU in 2-D and CG + BoomerAMG in 3-D (32^3 cells: 3.5 s against 23 s)."""
-    opts = {"snes_type": "newtonls", "snes_linesearch_type": solver_cfg.line_search,
-            "snes_rtol": solver_cfg.rtol, "snes_atol": solver_cfg.atol, "snes_stol": 0.0,
-            "snes_max_it": solver_cfg.max_it}
-    linear = solver_cfg.linear if solver_cfg.linear != "auto" else ("direct" if dim == 2 else "iterative")
-    if linear == "direct":
+def linear_kind(solver_cfg, dim):
+    """'direct' or 'iterative': linear: auto is MUMPS LU in 2-D and CG + AMG in 3-D
+    (32^3 cells: 3.5 s against 23 s)."""
+    if solver_cfg.linear != "auto":
+        return solver_cfg.linear
+    return "direct" if dim == 2 else "iterative"
+
+
+def petsc_options(solver_cfg, dim, linear=None):
+    """The PETSc options a solver config stands for (`linear` overrides the linear solver kind, as
+    the fallback to direct does); the user's petsc_options come last and win. The SNES tolerances
+    serve PETSc's own test only (vinewtonrsls): SuccessTest replaces it in the compliance solves."""
+    opts = {"snes_type": solver_cfg.method, "snes_max_it": solver_cfg.max_it,
+            "snes_rtol": solver_cfg.rtol, "snes_atol": solver_cfg.atol, "snes_stol": 0.0}
+    if solver_cfg.method == "newtonls":
+        opts["snes_linesearch_type"] = solver_cfg.line_search
+    if (linear or linear_kind(solver_cfg, dim)) == "direct":
         opts.update(ksp_type="preonly", pc_type="lu", pc_factor_mat_solver_type="mumps")
     else:
-        opts.update(ksp_type="cg", pc_type="hypre", pc_hypre_type="boomeramg", ksp_rtol=1e-10)
+        opts.update(ksp_type="cg", ksp_rtol=solver_cfg.linear_rtol, **_multigrid(solver_cfg.preconditioner))
+        if solver_cfg.inexact:
+            opts["snes_ksp_ew"] = ""  # Eisenstat-Walker: linear tolerance from the Newton residual
     opts.update(dict(solver_cfg.petsc_options))
     return opts
 
 
-class NewtonSolver:
-    """SNES on F(u) = 0 with Jacobian J, Dirichlet conditions `bcs`; u holds the initial guess."""
+def _multigrid(preconditioner):
+    if preconditioner == "gamg":
+        return {"pc_type": "gamg"}
+    return {"pc_type": "hypre", "pc_hypre_type": "boomeramg"}
 
-    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None):
+
+@dataclass(frozen=True)
+class SuccessTest:
+    """Converged when every norm is finite and one of these holds:
+    (R) ||F(u_k)|| <= max(atol, rtol * scale), scale = the norm of the load without the penalty
+        term (never relative to the initial residual, which carries 1/eps);
+    (S) the full Newton direction delta_k that led to u_k (before the line search damps it) is at
+        most stol * ||u_k||: near a root Newton's step is the error to first order, and it is not
+        scaled by 1/eps (the 1/eps rows of J and F cancel). It catches the tiny-eps regime where
+        round-off in the 1/eps terms keeps ||F|| above rtol * scale;
+    (C) Newton's quadratic model predicts the error of u_k, Θ^2 ||delta_k|| with Θ = the
+        contraction ||delta_k|| / ||delta_{k-1}|| (Deuflhard, Newton Methods, 2004, Sect. 2.1), below
+        stol * ||u_k||, and the simplified Newton correction ||J(u_{k-1})^{-1} F(u_k)|| (one more
+        solve with the last Jacobian, an estimate of the error of u_k) confirms it. Saves the
+        iteration that (S) would spend to see the error it already made small."""
+    rtol: float
+    atol: float
+    stol: float
+    max_it: int
+    scale: float
+
+    def __call__(self, its, fnorm, unorm, step=None, previous=None, correction=None):
+        """The SNES reason for iterate `its`, or None to go on. `step`, `previous`: ||delta_k||,
+        ||delta_{k-1}|| (None if unknown); `correction()` computes the simplified correction."""
+        if not all(math.isfinite(v) for v in (fnorm, unorm, step or 0.0)):
+            return DIVERGED_NAN
+        if fnorm <= max(self.atol, self.rtol * self.scale):
+            return CONVERGED_RESIDUAL
+        if self.step_small(step, unorm):
+            return CONVERGED_STEP
+        if correction is not None and self.error_predicted_small(step, previous, unorm):
+            if self.step_small(correction(), unorm):
+                return CONVERGED_STEP
+        return DIVERGED_MAX_IT if its >= self.max_it else None
+
+    def step_small(self, step, unorm):
+        """Test (S): a Newton correction of at most stol * ||u||."""
+        return step is not None and step <= self.stol * unorm
+
+    def error_predicted_small(self, step, previous, unorm):
+        """The quadratic model's prediction in test (C), for contracting steps only."""
+        if step is None or not previous or step >= previous:
+            return False
+        return (step / previous) ** 2 * step <= self.stol * unorm
+
+
+def success_test(solver_cfg, scale=1.0):
+    return SuccessTest(solver_cfg.rtol, solver_cfg.atol, solver_cfg.stol, solver_cfg.max_it, scale)
+
+
+class NewtonSolver:
+    """SNES on F(u) = 0 with Jacobian J, Dirichlet conditions `bcs`; u holds the initial guess.
+    `test`, a SuccessTest (its scale measured at every solve), replaces PETSc's convergence test;
+    without one PETSc's own test runs on the options' tolerances (vinewtonrsls, whose residual is
+    the reduced one). `monitor(snes, its, fnorm)` is called at every Newton iteration."""
+
+    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None):
         self.L, self.a, self.u, self.bcs = fem.form(F), fem.form(J), u, bcs
+        self.L_load = fem.form(load_part(F))
+        self.test = test
         self.b = fem_petsc.create_vector(self.L)
         self.A = fem_petsc.create_matrix(self.a)
         self.x = u.vector.duplicate()  # SNES's own iterate: never u.vector, which F() overwrites
@@ -50,34 +143,96 @@ class NewtonSolver:
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
         self.prefix = prefix or f"signorini_{next(_prefixes)}_"
+        self.configure(options)
+        if monitor is not None:
+            self.snes.setMonitor(monitor)
+
+    def configure(self, options):
+        """(Re)apply PETSc options under this solver's prefix, e.g. to fall back to a direct solve."""
+        _clear_options(self.prefix)
         _set_options(self.prefix, options)
         self.snes.setOptionsPrefix(self.prefix)
         self.snes.setFromOptions()
         self.snes.getKSP().setFromOptions()
-        self.snes.setConvergenceHistory()
-        if monitor is not None:
-            self.snes.setMonitor(monitor)
+        self.snes.setConvergenceHistory(reset=True)
+        self.line_search = self.snes.getType() == "newtonls"
+        self._user_radius = f"{self.prefix}snes_tr_delta0" in PETSc.Options().getAll()
+        if self.test is None:
+            return
+        self.snes.setConvergenceTest(self._converged)
+        if self.line_search:
+            self.snes.setLineSearchPreCheck(self._record_direction)
 
     def solve(self):
         """Run Newton from the current u; return the Outcome and leave the iterate in u."""
         self.u.vector.copy(self.x)
         fem_petsc.set_bc(self.x, self.bcs)  # start from an iterate that satisfies u = u_D on Γ_D
+        self._test = dataclasses.replace(self.test, scale=self.load_scale()) if self.test else None
+        self._direction, self._previous, self._confirmed, self._extra_linear_its = None, None, None, 0
+        if self.snes.getType() == "newtontr" and not self._user_radius:
+            self._set_trust_radius()
         self.snes.solve(None, self.x)
         self.x.copy(self.u.vector)
         self.u.x.scatter_forward()
         residuals, _ = self.snes.getConvergenceHistory()
         reason = self.snes.getConvergedReason()
-        finite = bool(np.all(np.isfinite(residuals))) and np.isfinite(self.x.norm())
+        if reason in STALLED and self._at_root():
+            reason = CONVERGED_STEP  # no decrease is possible at round-off, and none is needed
+        if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
+            self.snes.getKSP().reset()  # a failed factorisation leaves MUMPS unusable for the next solve
+        unorm = self.x.norm()
+        finite = bool(np.all(np.isfinite(residuals))) and np.isfinite(unorm)
+        estimate = self._confirmed if self._confirmed is not None else self._direction
         return Outcome(converged=bool(reason > 0 and finite),
                        reason=REASONS.get(reason, str(reason)) if finite else "DIVERGED_FNORM_NAN",
                        newton_its=self.snes.getIterationNumber(),
-                       linear_its=self.snes.getLinearSolveIterations(),
-                       residuals=tuple(float(r) for r in residuals))
+                       linear_its=self.snes.getLinearSolveIterations() + self._extra_linear_its,
+                       residuals=tuple(float(r) for r in residuals),
+                       correction=estimate / unorm if estimate is not None and unorm > 0 else None)
+
+    def _at_root(self):
+        """Whether the full Newton direction at the stalled iterate passes test (S): ||F|| then
+        only fails to decrease because it is at its round-off floor."""
+        if self._test is None or self._direction is None or self.snes.getKSP().getConvergedReason() < 0:
+            return False
+        return self._test.step_small(self._direction, self.x.norm())
+
+    def _set_trust_radius(self):
+        """PETSc starts newtontr with radius delta0 * ||u_0||, degenerate from u_0 = 0 (round-off
+        on Γ_D makes it 1e-17): scale delta0 so the radius is TR_RADIUS * max(||u_0||, sqrt(dofs))."""
+        unorm = self.x.norm()
+        scale = max(unorm, math.sqrt(self.x.getSize()))
+        PETSc.Options()[f"{self.prefix}snes_tr_delta0"] = TR_RADIUS * scale / unorm if unorm > 0 else TR_RADIUS
+        self.snes.setFromOptions()
+
+    def load_scale(self):
+        """||F_load(u_D)||: the volume part of the residual (load f, and the Dirichlet lifting) with
+        the Dirichlet rows zeroed; if that vanishes, the whole residual there; else 1."""
+        x_D = self.x.duplicate()
+        x_D.set(0.0)
+        fem_petsc.set_bc(x_D, self.bcs)
+        saved = self.u.vector.copy()
+        scale = self._assembled_norm(self.L_load, x_D) or self._assembled_norm(self.L, x_D) or 1.0
+        saved.copy(self.u.vector)
+        self.u.x.scatter_forward()
+        for vec in (x_D, saved):
+            vec.destroy()
+        return scale
 
     def destroy(self):
         for obj in (self.snes, self.A, self.b, self.x):
             obj.destroy()
         _clear_options(self.prefix)
+
+    def _assembled_norm(self, L, x):
+        x.copy(self.u.vector)
+        self.u.x.scatter_forward()
+        b = fem_petsc.assemble_vector(L)
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        fem_petsc.set_bc(b, self.bcs, x, -1.0)
+        norm = b.norm()
+        b.destroy()
+        return norm
 
     def _residual(self, snes, x, F):
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
@@ -94,6 +249,65 @@ class NewtonSolver:
         J.zeroEntries()
         fem_petsc.assemble_matrix(J, self.a, bcs=self.bcs)
         J.assemble()
+
+    def _record_direction(self, x, y):
+        """Line-search pre-check: remember the full Newton direction's norm; change nothing."""
+        self._direction = y.norm()
+        return False
+
+    def _converged(self, snes, its, norms):
+        xnorm, _, fnorm = norms
+        if not self.line_search and its > 0:
+            # newtontr: the KSP solution is the full Newton direction, before the radius cuts it
+            self._direction = snes.getKSP().getSolution().norm()
+        step = None if its == 0 else self._direction
+        if its > 0 and snes.getKSP().getConvergedReason() < 0:
+            step = None  # a failed linear solve says nothing about the error
+        self._confirmed = None
+        correction = self._simplified_correction if self.line_search else None
+        reason = self._test(its, fnorm, xnorm if its > 0 else self.x.norm(), step, self._previous, correction)
+        self._previous = step
+        return reason
+
+    def _simplified_correction(self):
+        """||J(u_{k-1})^{-1} F(u_k)||: one more solve with the factors/preconditioner of the last step."""
+        ksp = self.snes.getKSP()
+        y = self.b.duplicate()
+        ksp.solve(self.b, y)  # self.b holds F(u_k): the line search evaluated it there
+        self._extra_linear_its += ksp.getIterationNumber()
+        self._confirmed = y.norm() if ksp.getConvergedReason() > 0 else math.inf
+        y.destroy()
+        return self._confirmed
+
+
+def load_part(F):
+    """The volume (cell) integrals of a residual form: load and stiffness, no boundary penalty."""
+    return ufl.Form([itg for itg in F.integrals() if itg.integral_type() == "cell"])
+
+
+def condition_estimate(J, bcs, comm, max_its=20000):
+    """(lambda_min, lambda_max) of the assembled Jacobian on the free dofs, from the Lanczos
+    tridiagonal that unpreconditioned CG builds (KSPComputeEigenvalues); the rhs vanishes on
+    Dirichlet rows, so the identity rows bcs put there never enter the Krylov space."""
+    A = fem_petsc.assemble_matrix(fem.form(J), bcs=bcs)
+    A.assemble()
+    b = A.createVecRight()
+    start, end = b.getOwnershipRange()
+    b.setArray(np.sin(np.arange(start, end) * 618.0339887))  # deterministic, rich in every eigenvector
+    fem_petsc.set_bc(b, bcs, scale=0.0)
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(A)
+    ksp.setType("cg")
+    ksp.getPC().setType("none")
+    ksp.setTolerances(rtol=1e-14, atol=0.0, max_it=max_its)
+    ksp.setComputeEigenvalues(True)
+    x = b.duplicate()
+    ksp.solve(b, x)
+    eigenvalues = np.real(ksp.computeEigenvalues())
+    for obj in (ksp, A, b, x):
+        obj.destroy()
+    eigenvalues = eigenvalues[eigenvalues > 0]
+    return (float(eigenvalues.min()), float(eigenvalues.max())) if eigenvalues.size else (math.nan, math.nan)
 
 
 def _set_options(prefix, options):

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 from mpi4py import MPI
 from dolfinx import fem
 
-from . import fields, meshes, measure, model, solver
+from . import fields, meshes, measure, model, solver, stability, strategies
 from .meshes import DIRICHLET
 from . import verification
 
@@ -22,6 +22,7 @@ class Level:
     errors: dict
     time_s: float
     extra: dict = field(default_factory=dict)
+    solution: object = field(default=None, repr=False, compare=False)  # u_h, for nested iteration
 
 
 def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
@@ -35,11 +36,13 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     if done and not done[-1].outcome.converged and cfg.solver.on_failure == "stop":
         return levels  # the study had already stopped there
     verifier = verification.Verifier(cfg, comm)
-    resume_verifier(cfg, done, comm, verifier)
+    previous = resume_verifier(cfg, done, comm, verifier)
     for index, n in enumerate(cfg.mesh.levels):
         if index < len(done):
             continue
-        levels.append(solve_level(cfg, index, n, comm, monitor, verifier))
+        levels.append(solve_level(cfg, index, n, comm, monitor, verifier, previous))
+        previous = levels[-1].solution if levels[-1].outcome.converged else previous
+        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
         verification.add_rates(levels)
         if on_level is not None:
             on_level(levels)
@@ -49,16 +52,27 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
 
 
 def resume_verifier(cfg, done, comm, verifier):
-    """A resumed study solves its last converged level again, unrecorded: the successive differences
-    (measure `diff`) of the next level need its u_h."""
+    """A resumed study solves its finished levels again, unrecorded, for what the next level needs: the
+    last converged u_h, as the successive differences (measure `diff`) and nested iteration start from it.
+    Nested strategies solve the whole chain again (levels 0 .. last converged, each from the one before),
+    so the resumed levels start from the very same guess and give the same numbers as an uninterrupted
+    run; otherwise the last converged level alone. Returns that u_h (or None)."""
     converged = [lv for lv in done if lv.outcome.converged]
-    if converged and len(done) < len(cfg.mesh.levels) and "diff" in verifier.measures:
-        index = converged[-1].index
-        solve_level(cfg, index, cfg.mesh.levels[index], comm, verifier=verifier)
+    nested = cfg.solver.strategy in ("nested", "auto")
+    if not converged or len(done) >= len(cfg.mesh.levels) or not (nested or "diff" in verifier.measures):
+        return None
+    chain = [lv for lv in done if lv.index <= converged[-1].index] if nested else converged[-1:]
+    previous = None
+    for lv in chain:
+        again = solve_level(cfg, lv.index, cfg.mesh.levels[lv.index], comm,
+                            verifier=verifier if lv is converged[-1] else None, previous=previous)
+        previous = again.solution if again.outcome.converged else previous
+    return previous
 
 
-def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None):
-    """Build, solve and measure the level with n cells per side (or the level's entry of mesh.levels)."""
+def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None, previous=None):
+    """Build, solve and measure the level with n cells per side (or the level's entry of mesh.levels);
+    `previous`, the last converged level's u_h, is the initial guess of nested strategies."""
     start = time.perf_counter()
     domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
@@ -67,18 +81,16 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None)
     u_h = fem.Function(V, name="u_h")
     forms = model.forms(cfg, domain, u_h, eps)
     bcs = [dirichlet_condition(V, domain, forms.u_exact)]
-    newton = solver.NewtonSolver(forms.F, forms.J, u_h, bcs, solver.petsc_options(cfg.solver, cfg.dimension),
-                                 monitor=monitor)
-    outcome = newton.solve()
-    newton.destroy()
+    problem = strategies.Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, cfg.dimension)
+    outcome = strategies.solve(cfg.solver, problem, previous, monitor)
     # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
     errors = measure.errors(u_h, forms.u_exact) if forms.u_exact is not None else {}
     elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     if cfg.output.fields:
         fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
-    level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, elapsed,
-                  dict(domain.columns))
+    extra = dict(domain.columns, **stability.report(cfg, problem, domain, outcome, dofs))  # not in time_s
+    level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, elapsed, extra, u_h)
     if verifier is not None:  # Γ_C measures, reference errors (issue 4); not part of time_s
         verifier.measure(level, domain, u_h, forms)
     return level

@@ -19,7 +19,11 @@ def test_check_prints_every_default(tmp_path, capsys):
     resolved = yaml.safe_load(out)
     # keys the file does not give, filled in with their defaults
     assert resolved["solver"] == {"rtol": 1e-10, "atol": 1e-12, "max_it": 50, "linear": "auto",
-                                  "line_search": "bt", "on_failure": "continue", "petsc_options": {}}
+                                  "line_search": "bt", "on_failure": "continue", "petsc_options": {},
+                                  "strategy": "auto", "method": "newtonls", "stol": 1e-7,
+                                  "preconditioner": "boomeramg", "linear_rtol": 1e-10, "linear_fallback": True,
+                                  "inexact": False, "continuation": {"start": 1.0, "factor": 0.1, "max_steps": 20},
+                                  "condition_max_dofs": 0}
     assert resolved["output"]["plots"] is True and resolved["output"]["fields"] is False
     assert resolved["positive_part"] == {"kind": "exact"} and resolved["mesh"]["diagonal"] == "right"
     assert "refinements: [4, 8]" in out

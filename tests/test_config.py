@@ -34,7 +34,7 @@ def test_epsilon_power_law():
 
 def test_positive_part_smooth_default_delta():
     cfg = load({"positive_part": "smooth"})
-    assert cfg.positive_part.kind == "smooth" and cfg.positive_part.delta.text == "1e-2*h**2"
+    assert cfg.positive_part.kind == "smooth" and cfg.positive_part.delta.text == "1e-2*h*sqrt(eps)"
 
 
 def test_override_applies_before_validation():
@@ -338,3 +338,29 @@ def test_gmsh_geometry_change_changes_fingerprint(tmp_path):
     before = config.fingerprint(load_mesh(dict(HALF_DISK, geometry=str(geo))))
     geo.write_text(geo.read_text().replace("Point(3) = {1, 1, 0};", "Point(3) = {1, 2, 0};"))
     assert config.fingerprint(load_mesh(dict(HALF_DISK, geometry=str(geo)))) != before  # resume refuses
+
+
+def test_solver_strategy_defaults():
+    solver = load({}).solver
+    assert (solver.strategy, solver.method, solver.stol, solver.linear_fallback, solver.inexact) == \
+        ("auto", "newtonls", 1e-7, True, False)
+    assert solver.continuation == config.Continuation(start=1.0, factor=0.1, max_steps=20)
+    assert solver.condition_max_dofs == 0
+
+
+@pytest.mark.parametrize("changes, message", [
+    pytest.param({"strategy": "smart"}, "solver.strategy: 'smart' is not one of plain, nested, continuation, auto",
+                 id="strategy"),
+    pytest.param({"method": "newtontr", "line_search": "bt"}, "solver.line_search: only meaningful with method: newtonls",
+                 id="tr-line-search"),
+    pytest.param({"preconditioner": "ilu"}, "solver.preconditioner: 'ilu' is not one of boomeramg, gamg", id="pc"),
+    pytest.param({"inexact": "yes"}, "solver.inexact: must be true or false, got str 'yes'", id="inexact"),
+    pytest.param({"continuation": {"factor": 2}}, "solver.continuation.factor: must be < 1", id="factor"),
+    pytest.param({"continuation": {"steps": 3}}, "solver.continuation.steps: unknown key in solver.continuation "
+                 "\\(did you mean 'max_steps'", id="continuation-typo"),
+    pytest.param({"condition_max_dofs": -1}, "solver.condition_max_dofs: must be >= 0", id="condition"),
+    pytest.param({"stol": -1}, "solver.stol: must be >= 0", id="stol"),
+])
+def test_solver_strategy_rejection_names_key(changes, message):
+    with pytest.raises(config.ConfigError, match="^" + message):
+        load({"solver": changes})

@@ -60,3 +60,19 @@ def test_status_and_config_hash_recorded(make_config):
     with h5py.File(cfg.output_dir / "study.h5") as h5:
         assert h5.attrs["status"] == "complete" and h5.attrs["config_hash"] == config.fingerprint(cfg)
         assert list(h5["table"].attrs["columns"])[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
+
+
+def test_level_group_keeps_every_solve(make_config):
+    # max_it = 4 is one short at N = 16 from u = 0 (5 needed): auto's attempt fails; continuation then
+    # solves at eps_0 = 1 (4 iterations), 0.1 (2: easy, so the ratio squares to 0.01) and eps = h (2)
+    cfg = make_config(mesh={"refinements": [16]}, solver={"max_it": 4})
+    results.write(cfg, study.run_study(cfg))
+    with h5py.File(cfg.output_dir / "study.h5") as h5:
+        level = h5["level_00"]
+        eps = level.attrs["epsilon"]
+        assert list(level["solve_eps"]) == pytest.approx([eps, 1.0, 0.1, eps])
+        reasons = [r.decode() for r in level["solve_reason"]]
+        assert reasons[0] == "DIVERGED_MAX_IT" and all(r.startswith("CONVERGED") for r in reasons[1:])
+        its = list(level["solve_newton_its"])
+        assert len(level["residuals"]) == sum(n + 1 for n in its)  # each history: its + 1 norms
+        assert level.attrs["newton_its"] == sum(its) and level.attrs["continuation_steps"] == 3

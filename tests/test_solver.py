@@ -1,11 +1,17 @@
 """Numerical faults: NaN or Inf in the residual, the Jacobian or the solution fail the level with a
-reason, never an exception; the study then continues or stops per solver.on_failure."""
+reason, never an exception; the study then continues or stops per solver.on_failure. The success test,
+the config -> PETSc options map, and the condition estimate."""
 import csv
 
+import numpy as np
 import pytest
+import scipy.linalg
 import yaml
+from mpi4py import MPI
 
-from signorini_cli import cli, solver, study
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
+from signorini_cli import cli, solver, strategies, study
 from conftest import BASE, merge
 
 NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature point with x < 0.5
@@ -62,3 +68,91 @@ def test_nonfinite_level_in_cli(tmp_path):
         (row,) = csv.DictReader(f)
     assert row["converged"] == "false" and row["reason"] == "DIVERGED_FNORM_NAN"
     assert (tmp_path / "out" / "t" / "status.txt").read_text() == "failed at level 0: DIVERGED_FNORM_NAN\n"
+
+
+TEST = solver.SuccessTest(rtol=1e-10, atol=1e-12, stol=1e-8, max_it=50, scale=2.0)
+
+
+def test_success_residual_relative_to_load_not_to_initial_residual():
+    # from u = 0 with eps = 1e-8 the initial residual is ~1e7 (issue 5): a relative test with
+    # rtol 1e-10 would pass at 1e-3; this one wants 1e-10 * the load's norm (2e-10)
+    assert TEST(3, 1e-3, unorm=5.0) is None
+    assert TEST(3, 1.9e-10, unorm=5.0) == solver.CONVERGED_RESIDUAL
+
+
+def test_success_step_full_newton_correction():
+    assert TEST(3, 1.0, unorm=5.0, step=4e-8) == solver.CONVERGED_STEP  # 4e-8 <= 1e-8 * 5
+    assert TEST(3, 1.0, unorm=5.0, step=6e-8) is None
+
+
+def test_success_prediction_needs_confirmation():
+    calls = []
+
+    def correction(value):
+        return lambda: calls.append(value) or value
+
+    # Θ = 1e-3/1e-1 = 1e-2: predicted error Θ^2 * 1e-3 = 1e-7 <= 1e-8 * 50
+    assert TEST(3, 1.0, 50.0, step=1e-3, previous=1e-1, correction=correction(1e-7)) == solver.CONVERGED_STEP
+    assert TEST(3, 1.0, 50.0, step=1e-3, previous=1e-1, correction=correction(1e-6)) is None
+    assert calls == [1e-7, 1e-6]
+    # not contracting, or predicted too large: no confirmation solve is spent
+    assert TEST(3, 1.0, 50.0, step=1e-3, previous=1e-3, correction=correction(0.0)) is None
+    assert TEST(3, 1.0, 50.0, step=1e-2, previous=1e-1, correction=correction(0.0)) is None
+    assert calls == [1e-7, 1e-6]
+
+
+@pytest.mark.parametrize("norms", [
+    pytest.param(dict(fnorm=float("nan"), unorm=1.0), id="residual-nan"),
+    pytest.param(dict(fnorm=1.0, unorm=float("inf")), id="iterate-inf"),
+    pytest.param(dict(fnorm=1.0, unorm=1.0, step=float("nan")), id="step-nan"),
+])
+def test_success_nan_inf_diverge(norms):
+    assert TEST(1, **norms) == solver.DIVERGED_NAN
+
+
+def test_success_max_it():
+    assert TEST(50, 1.0, 1.0, step=1.0) == solver.DIVERGED_MAX_IT
+    assert TEST(50, 1e-11, 1.0) == solver.CONVERGED_RESIDUAL  # convergence wins on the last iteration
+
+
+@pytest.mark.parametrize("dim, solver_cfg, expected", [
+    pytest.param(2, {}, {"ksp_type": "preonly", "pc_factor_mat_solver_type": "mumps",
+                         "snes_linesearch_type": "bt"}, id="2d-auto-direct"),
+    pytest.param(3, {}, {"ksp_type": "cg", "pc_type": "hypre", "pc_hypre_type": "boomeramg"}, id="3d-auto-amg"),
+    pytest.param(2, {"linear": "iterative", "preconditioner": "gamg", "inexact": True},
+                 {"ksp_type": "cg", "pc_type": "gamg", "snes_ksp_ew": ""}, id="gamg-ew"),
+    pytest.param(2, {"method": "newtontr"}, {"snes_type": "newtontr"}, id="trust-region"),
+    pytest.param(2, {"line_search": "cp", "petsc_options": {"ksp_type": "gmres"}},
+                 {"snes_linesearch_type": "cp", "ksp_type": "gmres"}, id="user-options-win"),
+])
+def test_petsc_options_from_config(make_config, dim, solver_cfg, expected):
+    opts = solver.petsc_options(make_config(solver=solver_cfg).solver, dim)
+    assert {key: opts.get(key) for key in expected} == expected
+    assert ("snes_linesearch_type" in opts) == (opts["snes_type"] == "newtonls")
+    assert "snes_ksp_ew" not in solver.petsc_options(make_config(solver=solver_cfg).solver, dim, linear="direct")
+
+
+def test_condition_estimate_matches_dense_eigenvalues(make_config, monkeypatch):
+    cfg = make_config(mesh={"refinements": [8]}, epsilon={"law": "constant", "theta": 1e-4})
+    problem = solved_problem(cfg, monkeypatch)
+    lam_min, lam_max = solver.condition_estimate(problem.J, problem.bcs, MPI.COMM_SELF)
+    A = fem_petsc.assemble_matrix(fem.form(problem.J), bcs=problem.bcs)
+    A.assemble()
+    free = np.setdiff1d(np.arange(A.getSize()[0]), problem.bcs[0].dof_indices()[0])
+    eigenvalues = scipy.linalg.eigvalsh(A.convert("dense").getDenseArray()[np.ix_(free, free)])
+    # N=8 (49 free dofs): CG to 1e-14 runs the full Lanczos process; observed agreement 1e-12
+    assert lam_min == pytest.approx(eigenvalues[0], rel=1e-8)
+    assert lam_max == pytest.approx(eigenvalues[-1], rel=1e-8)
+
+
+def solved_problem(cfg, monkeypatch):
+    """The Problem of cfg's first level, solved in serial (caught on its way to strategies.solve)."""
+    seen, original = [], strategies.solve
+
+    def spy(solver_cfg, problem, previous=None, monitor=None):
+        seen.append(problem)
+        return original(solver_cfg, problem, previous, monitor)
+
+    monkeypatch.setattr(strategies, "solve", spy)
+    study.solve_level(cfg, 0, cfg.mesh.refinements[0], MPI.COMM_SELF)
+    return seen[-1]

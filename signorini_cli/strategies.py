@@ -1,0 +1,163 @@
+"""Solving one level robustly: the initial guess (zero, or nested iteration from the previous level),
+eps-continuation, and the fallback from an iterative to a direct linear solve; `auto` combines them."""
+import dataclasses
+import logging
+import math
+from dataclasses import dataclass
+
+from dolfinx import fem
+
+from . import solver
+from .transfer import transfer
+
+logger = logging.getLogger(__name__)
+EASY_ITS = 3  # a continuation step that took at most this many Newton iterations was easy
+MAX_FACTOR = 0.9  # a continuation step shrunk beyond eps_{k+1}/eps_k = 0.9 is not worth taking
+DIVERGED_CONTINUATION = "DIVERGED_MAX_CONTINUATION_STEPS"
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One level's discrete problem; u_h holds the iterate, eps is the Constant the forms use."""
+    F: object
+    J: object
+    u_h: fem.Function
+    bcs: list
+    eps: fem.Constant
+    eps_target: float
+    dim: int
+
+
+def solve(solver_cfg, problem, previous=None, monitor=None):
+    """Solve `problem` by solver_cfg.strategy, `previous` being the last converged level's u_h
+    (or None); u_h ends as the final iterate. Returns the level's Outcome. `monitor(snes, its, fnorm)`
+    sees every Newton iteration of every solve."""
+    newton = Newton(solver_cfg, problem, monitor)
+    try:
+        return STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg)
+    finally:
+        newton.destroy()
+
+
+def plain(newton, problem, previous, solver_cfg):
+    """Newton from u_h = 0 (u_D on Γ_D) at the target eps."""
+    initial_guess(problem.u_h, None)
+    return newton.run(problem.eps_target)
+
+
+def nested(newton, problem, previous, solver_cfg):
+    """Newton at the target eps from the previous level's solution (nested iteration)."""
+    initial_guess(problem.u_h, previous)
+    return newton.run(problem.eps_target)
+
+
+def continuation(newton, problem, previous, solver_cfg):
+    """eps-continuation from u_h = 0."""
+    initial_guess(problem.u_h, None)
+    return continue_eps(newton, problem, solver_cfg.continuation)
+
+
+def auto(newton, problem, previous, solver_cfg):
+    """Nested iteration; if Newton fails at the target eps, eps-continuation from the same guess."""
+    initial_guess(problem.u_h, previous)
+    guess = problem.u_h.x.array.copy()
+    first = newton.run(problem.eps_target)
+    if first.converged:
+        return first
+    logger.info("Newton failed at eps=%.3g (%s): eps-continuation", problem.eps_target, first.reason)
+    _restore(problem.u_h, guess)
+    return combine([first, continue_eps(newton, problem, solver_cfg.continuation)])
+
+
+STRATEGIES = {"plain": plain, "nested": nested, "continuation": continuation, "auto": auto}
+
+
+def initial_guess(u_h, previous):
+    """Zero, or the previous level's solution moved onto u_h's mesh (exact for P1 on nested
+    meshes, MPI-correct: transfer.transfer). Dirichlet values are set by the solver."""
+    if previous is None:
+        u_h.x.array[:] = 0.0
+    else:
+        u_h.x.array[:] = transfer(previous, u_h.function_space).x.array
+    u_h.x.scatter_forward()
+
+
+def continue_eps(newton, problem, settings):
+    """Solve at eps_0 = max(start, eps) > eps_1 > ... > eps, each from the last solution. The ratio
+    eps_{k+1}/eps_k starts at `factor`, is squared after an easy step (<= EASY_ITS Newton iterations)
+    and square-rooted after a failure (which restores the last solution); at most max_steps solves."""
+    target, factor = problem.eps_target, settings.factor
+    solved, eps_next, outcomes = None, max(settings.start, target), []
+    saved = problem.u_h.x.array.copy()
+    while len(outcomes) < settings.max_steps:
+        outcome = newton.run(eps_next)
+        outcomes.append(outcome)
+        if outcome.converged:
+            solved, saved = eps_next, problem.u_h.x.array.copy()
+            if solved <= target:
+                break
+            factor = factor**2 if outcome.newton_its <= EASY_ITS else factor
+        else:
+            _restore(problem.u_h, saved)
+            factor = math.sqrt(factor)
+            if solved is None or factor > MAX_FACTOR:
+                break
+        eps_next = max(target, solved * factor)
+    return _continuation_outcome(outcomes, bool(solved is not None and solved <= target))
+
+
+def _continuation_outcome(outcomes, reached):
+    total = combine(outcomes)
+    reason = total.reason if reached or not outcomes[-1].converged else DIVERGED_CONTINUATION
+    return dataclasses.replace(total, converged=reached, reason=reason, continuation_steps=len(outcomes))
+
+
+def combine(outcomes):
+    """One Outcome for consecutive solves of a level: the last one's verdict, summed counts."""
+    last = outcomes[-1]
+    return solver.Outcome(
+        converged=last.converged, reason=last.reason,
+        newton_its=sum(o.newton_its for o in outcomes), linear_its=sum(o.linear_its for o in outcomes),
+        residuals=sum((o.residuals for o in outcomes), ()),
+        continuation_steps=sum(o.continuation_steps for o in outcomes),
+        linear_fallback=any(o.linear_fallback for o in outcomes), steps=sum((o.steps for o in outcomes), ()),
+        correction=last.correction)
+
+
+class Newton:
+    """One level's SNES, run at any eps; falls back to a direct linear solve (for the rest of the
+    level) when an iterative one fails and linear_fallback is on."""
+
+    def __init__(self, solver_cfg, problem, monitor=None):
+        self.cfg, self.problem = solver_cfg, problem
+        self.linear = solver.linear_kind(solver_cfg, problem.dim)
+        self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs,
+                                        solver.petsc_options(solver_cfg, problem.dim), monitor=monitor,
+                                        test=solver.success_test(solver_cfg))
+        self.fell_back = False
+
+    def run(self, eps):
+        """One SNES solve at `eps` from the current u_h."""
+        self.problem.eps.value = eps
+        start = self.problem.u_h.x.array.copy()
+        outcomes = [self.snes.solve()]
+        if outcomes[-1].reason == solver.LINEAR_SOLVE_FAILED and self._can_fall_back():
+            if self.problem.u_h.function_space.mesh.comm.rank == 0:
+                logger.warning("iterative linear solve failed at eps=%.3g: falling back to a direct solve", eps)
+            self.linear, self.fell_back = "direct", True
+            self.snes.configure(solver.petsc_options(self.cfg, self.problem.dim, linear="direct"))
+            _restore(self.problem.u_h, start)
+            outcomes.append(self.snes.solve())
+        outcomes = [dataclasses.replace(o, steps=((eps, o.newton_its, o.reason),)) for o in outcomes]
+        return dataclasses.replace(combine(outcomes), linear_fallback=self.fell_back)
+
+    def destroy(self):
+        self.snes.destroy()
+
+    def _can_fall_back(self):
+        return self.linear == "iterative" and self.cfg.linear_fallback
+
+
+def _restore(u_h, values):
+    u_h.x.array[:] = values
+    u_h.x.scatter_forward()
