@@ -74,11 +74,12 @@ STRATEGIES = {"plain": plain, "nested": nested, "continuation": continuation, "a
 
 def initial_guess(u_h, previous):
     """Zero, or the previous level's solution moved onto u_h's mesh (exact for P1 on nested
-    meshes, MPI-correct: transfer.transfer). Dirichlet values are set by the solver."""
+    meshes, MPI-correct: transfer.transfer; extended affinely beyond a curved boundary the coarser
+    mesh does not reach). Dirichlet values are set by the solver."""
     if previous is None:
         u_h.x.array[:] = 0.0
     else:
-        u_h.x.array[:] = transfer(previous, u_h.function_space).x.array
+        u_h.x.array[:] = transfer(previous, u_h.function_space, extend=True).x.array
     u_h.x.scatter_forward()
 
 

@@ -10,8 +10,11 @@ from mpi4py import MPI
 from dolfinx import fem, geometry
 
 
-def transfer(u_source, V_target):
-    """u_source (P1 on one mesh) as a Function on V_target (P1 on another mesh of the same domain)."""
+def transfer(u_source, V_target, extend=False):
+    """u_source (P1 on one mesh) as a Function on V_target (P1 on another mesh of the same domain).
+    A target point outside the source mesh is an error, or with `extend` (curved boundaries of a
+    non-nested family: an initial guess, not a measurement) takes the affine extension of u_source
+    from its closest cell."""
     comm = V_target.mesh.comm
     index_map = V_target.dofmap.index_map
     n_owned = index_map.size_local
@@ -21,6 +24,8 @@ def transfer(u_source, V_target):
     values, found = evaluate(u_source, all_points)
     owner = np.where(found, comm.rank, comm.size).astype(np.int32)
     comm.Allreduce(MPI.IN_PLACE, owner, op=MPI.MIN)
+    if np.any(owner == comm.size) and extend:
+        values, owner = extend_outside(u_source, all_points, values, owner)
     if np.any(owner == comm.size):
         missing = all_points[owner == comm.size][0]
         raise ValueError(f"transfer: {np.count_nonzero(owner == comm.size)} target points lie outside "
@@ -51,3 +56,34 @@ def evaluate(u, points):
     if np.any(found):
         values[found] = u.eval(points[found], cells[found])[:, 0]
     return values, found
+
+
+def extend_outside(u, points, values, owner):
+    """(values, owner) completed at the points no rank's cell contains (owner == size): the affine
+    extension of u from the closest cell over all ranks (the lowest rank on ties)."""
+    msh = u.function_space.mesh
+    comm = msh.comm
+    missing = np.flatnonzero(owner == comm.size)
+    cells, distance = closest_cells(msh, points[missing])
+    nearest = distance.copy()
+    comm.Allreduce(MPI.IN_PLACE, nearest, op=MPI.MIN)
+    rank = np.where(distance == nearest, comm.rank, comm.size).astype(np.int32)
+    comm.Allreduce(MPI.IN_PLACE, rank, op=MPI.MIN)
+    mine = rank == comm.rank
+    if np.any(mine):  # P1 on an affine cell: eval pulls the point back through the cell's affine map
+        values[missing[mine]] = u.eval(points[missing[mine]], cells[mine])[:, 0]
+    owner = owner.copy()
+    owner[missing] = rank
+    return values, owner
+
+
+def closest_cells(msh, points):
+    """(cells, squared distances): for each point the closest cell owned by this rank (inf if none)."""
+    tdim = msh.topology.dim
+    owned = np.arange(msh.topology.index_map(tdim).size_local, dtype=np.int32)
+    if not len(owned) or not len(points):
+        return np.zeros(len(points), dtype=np.int32), np.full(len(points), np.inf)
+    tree = geometry.BoundingBoxTree(msh, tdim, owned)
+    midpoints = geometry.create_midpoint_tree(msh, tdim, owned)
+    cells = np.asarray(geometry.compute_closest_entity(tree, midpoints, msh, points), dtype=np.int32)
+    return cells, np.asarray(geometry.squared_distance(msh, tdim, cells, points), dtype=float)

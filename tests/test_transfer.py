@@ -50,3 +50,29 @@ def test_transfer_nested_exact_serial(make):
 def test_transfer_nested_exact_two_ranks(make):
     assert MPI.COMM_WORLD.size == 2
     check_nested_exact(make)
+
+
+def check_extend_outside(comm):
+    """An affine source is its own affine extension: moved onto a mesh that reaches beyond the source
+    (as the finer mesh of a curved family does) it stays exact; without extend it is an error."""
+    source = fem.Function(fem.FunctionSpace(mesh.create_unit_square(comm, 4, 4), ("Lagrange", 1)))
+    source.interpolate(lambda x: 1 + 2 * x[0] + 3 * x[1])
+    wider = mesh.create_rectangle(comm, [np.array([-0.1, 0.0]), np.array([1.1, 1.05])], [6, 5])
+    V = fem.FunctionSpace(wider, ("Lagrange", 1))
+    with pytest.raises(ValueError, match="lie outside the source mesh"):
+        transfer(source, V)
+    moved = transfer(source, V, extend=True)
+    exact = fem.Function(V)
+    exact.interpolate(lambda x: 1 + 2 * x[0] + 3 * x[1])
+    # round-off of the pull-back: observed 9e-16
+    assert comm.allreduce(np.max(np.abs(moved.x.array - exact.x.array)), op=MPI.MAX) < 1e-12
+
+
+def test_transfer_extend_outside_serial():
+    check_extend_outside(MPI.COMM_SELF)
+
+
+@pytest.mark.mpi
+def test_transfer_extend_outside_two_ranks():
+    assert MPI.COMM_WORLD.size == 2
+    check_extend_outside(MPI.COMM_WORLD)
