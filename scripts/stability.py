@@ -16,6 +16,7 @@ from signorini_cli import cli, config
 
 ROOT = Path(__file__).resolve().parent.parent
 EASY_ITS = 3  # the issue's target: at most 3 Newton iterations after the first level with strategy auto
+STRATEGIES_AGREE = 1e-6  # relative L2 difference between strategies' solutions: stol = 1e-7 of ||u|| and more
 DELTAS = ("exact", "1e-12", "1e-2*h**2", config.DEFAULT_DELTA, "h*sqrt(eps)", "1e-2*h", "h")
 DELTA_CASES = (("1.0", "theta_h", "1.0"), ("1.0", "constant", "1.0e-8"), ("1.0", "theta_h", "1000.0"),
                ("2.0", "theta_h", "1.0"), ("2.0", "constant", "1.0e-8"), ("2.0", "theta_h", "1000.0"))
@@ -85,7 +86,9 @@ def stiff_section(cases):
     lines = ["## The stiff suite (`configs/stiff/`)", "",
              "Each study with `strategy: auto` (the default) and, for comparison, `strategy: plain` (Newton "
              "from 0 with the bt line search on every level) and `strategy: continuation` (ε-continuation from 0 "
-             "on every level). Newton and linear iterations count every solve of the level. With ε ≪ h the "
+             "on every level). Newton and linear iterations count every solve of the level; 'L2 apart' is the "
+             f"largest relative difference of L2 between the three on levels they all solved (bold above "
+             f"{STRATEGIES_AGREE:g}: one of them stopped away from the solution). With ε ≪ h the "
              "residual carries 1/ε: `final ‖δ‖/‖u‖`, the last Newton correction, is the error estimate the "
              "success test used.", "",
              summary_table(cases), ""]
@@ -99,8 +102,8 @@ def stiff_section(cases):
 def summary_table(cases):
     header = ["case", "finest N", "auto: all converged", "auto: max Newton its after level 0",
               "auto: Newton its (total)", "plain: levels failed", "plain: Newton its (total)",
-              "continuation: levels failed", "continuation: Newton its (steps)", "finest L2", "last rate L2",
-              "last rate H1"]
+              "continuation: levels failed", "continuation: Newton its (steps)", "L2 apart (strategies)",
+              "finest L2", "last rate L2", "last rate H1"]
     lines = []
     for path, _, (_, rows), (_, plain), (_, cont) in cases:
         lines.append([path.stem, rows[-1]["N"], fmt(all(r["converged"] for r in rows)),
@@ -108,8 +111,18 @@ def summary_table(cases):
                       sum(not r["converged"] for r in plain), sum(r["newton_its"] for r in plain),
                       sum(not r["converged"] for r in cont),
                       f"{sum(r['newton_its'] for r in cont)} ({sum(r['continuation_steps'] for r in cont)})",
-                      fmt(rows[-1].get("L2")), fmt(rows[-1].get("rate_L2"), ".2f"), fmt(rows[-1].get("rate_H1"), ".2f")])
+                      apart(rows, plain, cont), fmt(rows[-1].get("L2")), fmt(rows[-1].get("rate_L2"), ".2f"), fmt(rows[-1].get("rate_H1"), ".2f")])
     return table(header, lines)
+
+
+def apart(*runs):
+    """The largest relative difference of L2 between strategies on the levels all of them converged:
+    the same discrete solution must come out of each (bold when above STRATEGIES_AGREE)."""
+    diffs = [abs(max(l2) - min(l2)) / min(l2) for l2 in
+             ([r.get("L2") for r in level] for level in zip(*runs)) if all(v for v in l2)]
+    if not diffs:
+        return "–"
+    return fmt(max(diffs), ".0e") if max(diffs) <= STRATEGIES_AGREE else f"**{fmt(max(diffs), '.0e')}**"
 
 
 def level_table(rows, plain_rows):

@@ -101,6 +101,23 @@ def test_success_prediction_needs_confirmation():
     assert calls == [1e-7, 1e-6]
 
 
+def test_success_prediction_only_for_small_steps():
+    # ||delta|| = 1e-3 > sqrt(1e-8) * 5 = 5e-4: outside the local phase, no prediction is trusted
+    assert not TEST.error_predicted_small(1e-3, 1e3, 5.0)
+    assert TEST.error_predicted_small(1e-4, 1e1, 5.0)  # Θ^2 ||delta|| = 1e-14 <= 5e-8
+
+
+def test_success_not_fooled_by_damped_steps(make_config):
+    # alpha = 1, eps = 1e-8, plain Newton from 0 on N = 128: the first step overshoots by 1/eps and the
+    # line search damps it to lambda ~ 1e-8; a prediction from that step, confirmed with a Jacobian of
+    # another active set, once accepted iterate 2 at L2 = 0.16. The solution has L2 = 1.0157e-4
+    # (auto, docs/stability.md); plain needs 23 iterations.
+    cfg = make_config(alpha=1.0, epsilon={"law": "constant", "theta": 1e-8}, mesh={"refinements": [128]},
+                      solver={"strategy": "plain"})
+    (level,) = study.run_study(cfg, comm=MPI.COMM_SELF)
+    assert level.outcome.converged and level.errors["L2"] == pytest.approx(1.0157e-4, rel=1e-3)
+
+
 @pytest.mark.parametrize("norms", [
     pytest.param(dict(fnorm=float("nan"), unorm=1.0), id="residual-nan"),
     pytest.param(dict(fnorm=1.0, unorm=float("inf")), id="iterate-inf"),
