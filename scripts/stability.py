@@ -2,12 +2,15 @@
 sweep, and write docs/stability.md from the runs. Every number in that page comes from here."""
 import argparse
 import csv
+import dataclasses
 import datetime
 import io
 import math
 import os
 import platform
+import re
 from contextlib import redirect_stdout
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +19,9 @@ from signorini_cli import cli, config
 
 ROOT = Path(__file__).resolve().parent.parent
 EASY_ITS = 3  # the issue's target: at most 3 Newton iterations after the first level with strategy auto
-STRATEGIES_AGREE = 1e-6  # relative L2 difference between strategies' solutions: stol = 1e-7 of ||u|| and more
+# relative L2 difference between strategies' solutions: solver tolerance allows stol ||u|| / ||u - u_h||
+# (1e-7 * 0.32 / 2.5e-5 = 1.3e-3 at N = 256); a solve stopped away from the solution is off by factors
+STRATEGIES_AGREE = 1e-2
 DELTAS = ("exact", "1e-12", "1e-2*h**2", config.DEFAULT_DELTA, "h*sqrt(eps)", "1e-2*h", "h")
 DELTA_CASES = (("1.0", "theta_h", "1.0"), ("1.0", "constant", "1.0e-8"), ("1.0", "theta_h", "1000.0"),
                ("2.0", "theta_h", "1.0"), ("2.0", "constant", "1.0e-8"), ("2.0", "theta_h", "1000.0"))
@@ -26,18 +31,45 @@ CONDITION_EPS = ("1.0e-1", "1.0e-2", "1.0e-4", "1.0e-6", "1.0e-8")
 CONDITION_LEVELS = "[8, 16, 32, 64]"
 
 
+@dataclass(frozen=True)
+class Runs:
+    """Where runs go (`runs / "name"` is a sub-folder), and whether finished earlier runs of the same
+    config may be read back instead of run again (--reuse)."""
+    root: Path
+    reuse: bool = False
+
+    def __truediv__(self, name):
+        return dataclasses.replace(self, root=self.root / name)
+
+
 def run(path, out, overrides=()):
-    """Run one study through the command line (in this process); return (exit status, rows)."""
-    args = ["run", str(path), "--output", str(out), "--force", "--quiet"]
-    for item in overrides:
-        args += ["--set", item]
-    with redirect_stdout(io.StringIO()):
-        status = cli.main(args)
+    """Run one study through the command line (in this process) into the Runs `out`; return
+    (exit status, rows)."""
+    cfg = config.load(path, list(overrides) + [f"output.dir={out.root}"])
+    status = reused(cfg) if out.reuse else None
+    if status is None:
+        args = ["run", str(path), "--output", str(out.root), "--force", "--quiet"]
+        for item in overrides:
+            args += ["--set", item]
+        with redirect_stdout(io.StringIO()):
+            status = cli.main(args)
     if status >= 128:  # interrupted (SIGINT, SIGTERM): the page would be half made, stop here
         raise SystemExit(status)
-    cfg = config.load(path, list(overrides) + [f"output.dir={out}"])
     with open(cfg.output_dir / "rates.csv") as f:
         return status, [_typed(row) for row in csv.DictReader(f)]
+
+
+def reused(cfg):
+    """The exit status of a finished earlier run of exactly this config (same hash), or None. Only for
+    reworking the page: the hash does not see changes to the code."""
+    import h5py
+    path = cfg.output_dir / "study.h5"
+    if not path.exists():
+        return None
+    with h5py.File(path, "r") as h5:
+        if h5.attrs.get("config_hash") != config.fingerprint(cfg) or h5.attrs.get("status") != "complete":
+            return None
+        return 0 if all(h5["table/converged"][()]) else 1
 
 
 def _typed(row):
@@ -194,8 +226,10 @@ def delta_sweep(out):
             pp = "positive_part=exact" if delta == "exact" else f"positive_part={{kind: smooth, delta: '{delta}'}}"
             base = [f"alpha={alpha}", f"epsilon.law={law}", f"epsilon.theta={theta}", pp,
                     f"mesh.refinements={DELTA_LEVELS}"]
+            name = re.sub(r"[^0-9a-z.]+", "_", f"alpha{alpha}-{law}{theta}-{delta}")  # one folder per variant
             results[(alpha, law, theta, delta)] = {
-                strategy: run(ROOT / "configs" / "demo.yaml", out / strategy, base + [f"solver.strategy={strategy}"])[1]
+                strategy: run(ROOT / "configs" / "demo.yaml", out / strategy / name,
+                              base + [f"solver.strategy={strategy}"])[1]
                 for strategy in ("plain", "auto")}
     return results
 
@@ -319,8 +353,10 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--output", default=str(ROOT / "results" / "stability"), help="where the runs go")
     parser.add_argument("--page", default=str(ROOT / "docs" / "stability.md"), help="the page to write")
+    parser.add_argument("--reuse", action="store_true",
+                        help="read earlier runs with the same config instead of running them (page changes only)")
     args = parser.parse_args(argv)
-    out = Path(args.output)
+    out = Runs(Path(args.output), args.reuse)
     cases = stiff_suite(out / "stiff")
     sections = [header(), done_when(cases), stiff_section(cases),
                 regular_section(*regular_studies(out / "regular")), delta_section(delta_sweep(out / "delta")),
