@@ -5,7 +5,6 @@ import dataclasses
 import logging
 import os
 import signal
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +14,7 @@ from mpi4py import MPI
 import dolfinx.mesh
 from dolfinx import cpp, fem
 
-from . import geometry_files, meshes, refinement
+from . import files, geometry_files, meshes, refinement
 from .meshes import CONTACT, DIRICHLET
 
 logger = logging.getLogger(__name__)
@@ -84,7 +83,7 @@ def mesh_file(geo, size, dim, cache_dir, comm=MPI.COMM_WORLD):
         if path.exists():
             return path, False
         path.parent.mkdir(parents=True, exist_ok=True)
-        _replace(path, lambda tmp: generate(geo, size, dim, tmp))
+        files.replace(path, lambda tmp: generate(geo, size, dim, tmp))
         logger.info("meshed %s at size %g: %s", geo, size, path)
         return path, True
     return _on_rank0(comm, work, f"meshing {geo} at size {size:g}")
@@ -154,18 +153,6 @@ def _on_rank0(comm, work, what):
     if error is not None:
         raise GeometryError(error)
     return result
-
-
-def _replace(path, write_to):
-    """Write through a temporary file in the same folder, then rename: concurrent runs share the cache."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write_to(Path(tmp))
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 # --- per-level columns ---------------------------------------------------------------------------

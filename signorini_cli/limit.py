@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 from dolfinx import fem
 
-from . import config, measure, meshes, model, rates, solver, vi
+from . import config, files, measure, meshes, model, rates, solver, vi
 
 MEASURES = ("L2", "H1", "L2_gamma_c", "penetration")  # of u_{ε,h} − u_{S,h}; penetration: max_Γc [u_{ε,h}]_+
 SWEEP_COLUMNS = ("N", "h", "dofs", "alpha", "epsilon", "converged", "newton_its",
@@ -249,8 +249,8 @@ def write(cfg, result, comm=MPI.COMM_WORLD):
         folder = cfg.output_dir
         folder.mkdir(parents=True, exist_ok=True)
         for name, rows in named.items():
-            results._replace(folder / f"{name}.csv", lambda path, rows=rows: path.write_text(results.csv_text(rows)))
-        results._replace(folder / "study.h5", lambda path: _write_h5(path, cfg, named, comm.size))
+            files.replace(folder / f"{name}.csv", lambda path, rows=rows: path.write_text(results.csv_text(rows)))
+        files.replace(folder / "study.h5", lambda path: _write_h5(path, cfg, named, comm.size))
     comm.barrier()
     return named
 

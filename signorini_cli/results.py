@@ -3,15 +3,13 @@ import csv
 import functools
 import io
 import json
-import os
 import platform
 import subprocess
-import tempfile
 from pathlib import Path
 
 from mpi4py import MPI
 
-from . import rates
+from . import files, rates
 from . import verdict
 
 SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
@@ -60,12 +58,12 @@ def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
     summary = verdict.summarize(cfg, levels) if summary is None else summary
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
-    _replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
+    files.replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
     summary_text = csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
-    _replace(folder / "summary.csv", lambda path: path.write_text(summary_text))
-    _replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
+    files.replace(folder / "summary.csv", lambda path: path.write_text(summary_text))
+    files.replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
     if status is not None:
-        _replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
+        files.replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
 
 
 def csv_text(rows, columns=None):
@@ -89,25 +87,6 @@ def _cell(value):
     if isinstance(value, float):
         return repr(value)
     return value
-
-
-def _umask():
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _replace(path, write_to):
-    """Write through a temporary file in the same folder, then rename: readers never see half a file."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; results are as readable as any new file
-    try:
-        write_to(Path(tmp))
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def versions():

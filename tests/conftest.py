@@ -46,3 +46,23 @@ def make_config(tmp_path):
 
 # The manufactured Signorini solution of docs/signorini-solution.md (contact x < 1/2, free x > 1/2 on y = 0)
 U_SIGNORINI = "y*(abs(x-0.5)-x+0.5)**3 - (abs(x-0.5)+x-0.5)**3*(1-y**2)"
+
+
+class Interrupt(Exception):
+    """Raised after a level to stop a study the way a kill would."""
+
+
+@pytest.fixture
+def partial_study(make_config):
+    """A 3-level study stopped after its second level: what a killed run leaves on disk."""
+    from signorini_cli import results, study
+    cfg = make_config(mesh={"refinements": [4, 8, 16]})
+
+    def write_then_stop(levels):
+        results.write(cfg, levels)
+        if len(levels) == 2:
+            raise Interrupt
+
+    with pytest.raises(Interrupt):
+        study.run_study(cfg, on_level=write_then_stop)
+    return cfg

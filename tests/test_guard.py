@@ -73,7 +73,7 @@ def check_kept(out, k):
     assert [row["level"] for row in table(out)] == [str(i) for i in range(k)]
     with h5py.File(Path(out) / "t" / "study.h5") as h5:
         assert h5.attrs["levels_done"] == k and h5.attrs["status"] == f"interrupted at level {k}"
-    assert not list((Path(out) / "t").glob(".*tmp"))
+    assert not list((Path(out) / "t").glob(".*.tmp*"))
 
 
 @pytest.mark.parametrize("signum, level", [

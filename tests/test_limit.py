@@ -119,7 +119,7 @@ def test_sweep_writes_documented_tables(tmp_path, capsys):
     assert cli.main(["run", str(path)]) == cli.EXIT_BAD_INPUT  # results exist: --force needed
     assert cli.main(["report", str(folder)]) == cli.EXIT_BAD_INPUT  # no rate table to report
     assert "epsilon_sweep study has no rate table" in capsys.readouterr().err
-    assert not list(folder.glob(".*tmp"))
+    assert not list(folder.glob(".*.tmp*"))
 
 
 def test_total_error_writes_spec_tables(make_config):

@@ -65,23 +65,6 @@ def test_summary_table_one_line_per_study():
     assert lines[1].split()[:3] == ["a", "3", "1.250e-01"] and " 2.00 " in lines[1]
 
 
-class Interrupt(Exception):
-    pass
-
-
-@pytest.fixture
-def partial_study(make_config):
-    """A 3-level study stopped after its second level: what a killed run leaves on disk."""
-    cfg = make_config(mesh={"refinements": [4, 8, 16]})
-
-    def write_then_stop(levels):
-        results.write(cfg, levels)
-        if len(levels) == 2:
-            raise Interrupt
-
-    with pytest.raises(Interrupt):
-        study.run_study(cfg, on_level=write_then_stop)
-    return cfg
 
 
 @pytest.mark.parametrize("name", ["study.h5", "rates.csv", ""])
