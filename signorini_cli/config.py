@@ -670,12 +670,6 @@ def _boolean(value, path):
     return value
 
 
-def _boolean(value, path):
-    if not isinstance(value, bool):
-        raise ConfigError(path, f"must be true or false, got {_show(value)}")
-    return value
-
-
 def _string(value, path, empty=False):
     if not isinstance(value, str) or (not empty and not value.strip()):
         raise ConfigError(path, f"must be a non-empty string, got {_show(value)}")
