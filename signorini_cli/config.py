@@ -134,6 +134,7 @@ class Solver:
     inexact: bool = False  # Eisenstat-Walker forcing of the iterative linear tolerance
     continuation: Continuation = Continuation()
     condition_max_dofs: int = 0  # estimate cond(J) on levels with at most this many dofs
+    linear_floor: bool = False  # time one linear solve of the converged Jacobian per level (make bench)
 
 
 @dataclass(frozen=True)
@@ -445,7 +446,7 @@ def _solver(raw, path):
 
 
 SOLVER_STRATEGY_KEYS = ("strategy", "method", "stol", "preconditioner", "linear_rtol", "linear_fallback",
-                        "inexact", "continuation", "condition_max_dofs")
+                        "inexact", "continuation", "condition_max_dofs", "linear_floor")
 
 
 def _solver_strategy(raw, path):
@@ -463,7 +464,8 @@ def _solver_strategy(raw, path):
                 inexact=_boolean(raw.get("inexact", False), f"{path}.inexact"),
                 continuation=_continuation(raw.get("continuation", {}), f"{path}.continuation"),
                 condition_max_dofs=_integer(raw.get("condition_max_dofs", 0), f"{path}.condition_max_dofs",
-                                            low=0))
+                                            low=0),
+                linear_floor=_boolean(raw.get("linear_floor", False), f"{path}.linear_floor"))
 
 
 def _continuation(raw, path):

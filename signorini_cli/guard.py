@@ -141,6 +141,7 @@ class Watch:
 
     def __init__(self, cfg, done, comm):
         self.cfg, self.levels, self.comm = cfg, list(done), comm
+        self.done = self.recorded = len(done)
 
     def __enter__(self):
         try:
@@ -152,14 +153,22 @@ class Watch:
 
     def level_done(self, levels):
         """run_study's on_level: write the results whole (signals wait), then the testing hook; the rows."""
-        from . import results
         with deferred():
             self.levels = list(levels)
-            rows = results.write(self.cfg, self.levels, self.comm, status=status(self.cfg, self.levels))
+            start = time.perf_counter()
+            rows = results_write(self.cfg, self.levels, self.comm)
+            if len(self.levels) > self.recorded:  # the new level's t_output: its record written
+                timings = self.levels[-1].timings
+                timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
+                self.recorded = len(self.levels)
         fault_hook(len(self.levels), self.comm)
         return rows
 
     def __exit__(self, kind, err, tb):
+        if err is None and len(self.levels) > self.done:
+            with deferred():  # once more, so that the last level's record holds its own t_output
+                results_write(self.cfg, self.levels, self.comm)
+            return False
         if err is None or not isinstance(err, (Exception, Interrupted)):
             return False
         settle(err, self.comm)
@@ -188,6 +197,12 @@ class Watch:
             results.write_files(self.cfg, self.levels, results.table(self.levels), self.comm.size, state)
         except OSError as err:
             logger.warning("could not record the status %r in %s: %s", state, self.cfg.output_dir, err)
+
+
+def results_write(cfg, levels, comm):
+    """rates.csv, study.h5 and status.txt of the levels so far (collective); the table's rows."""
+    from . import results
+    return results.write(cfg, levels, comm, status=status(cfg, levels))
 
 
 def fault_hook(level, comm):

@@ -95,9 +95,10 @@ def sweep_alpha(cfg, domain, u_S, alpha):
     u_h = fem.Function(V, name="u_eps_h")
     forms_ = model.forms(dataclasses.replace(cfg, alpha=alpha), domain, u_h, eps)
     bc = dirichlet_condition(V, domain, forms_.u_exact)
-    newton = solver.NewtonSolver(forms_.F, forms_.J, u_h, [bc], solver.petsc_options(cfg.solver, cfg.dimension),
+    dofs = solver.global_dofs(V)
+    newton = solver.NewtonSolver(forms_.F, forms_.J, u_h, [bc],
+                                 solver.petsc_options(cfg.solver, cfg.dimension, dofs=dofs),
                                  test=solver.success_test(cfg.solver))
-    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     try:
         for value in cfg.limit.epsilon:
             start = time.perf_counter()

@@ -79,7 +79,8 @@ def solve(cfg, domain, u, eps_value):
     fdim = domain.mesh.topology.dim - 1
     dofs = fem.locate_dofs_topological(V, fdim, domain.facet_tags.indices[domain.facet_tags.values == DIRICHLET])
     bcs = [fem.dirichletbc(fem.Function(V), dofs)]
-    newton = solver.NewtonSolver(forms.F, forms.J, u, bcs, solver.petsc_options(cfg.solver, cfg.dimension),
+    options = solver.petsc_options(cfg.solver, cfg.dimension, dofs=solver.global_dofs(V))
+    newton = solver.NewtonSolver(forms.F, forms.J, u, bcs, options,
                                  test=solver.success_test(cfg.solver))
     outcome = newton.solve()
     newton.destroy()

@@ -16,6 +16,7 @@ SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
                 "L2", "rate_L2", "H1", "rate_H1", "time_s")
 EXTRA_COLUMNS = ("reason", "linear_its", "final_residual")
 NORMS = ("L2", "H1")
+WORK_PRECISION_COLUMNS = ("norm", "level", "N", "dofs", "error", "time_s", "cumulative_time_s")
 # one line: running (k of n levels done) | complete | interrupted at level k | failed at level k: reason
 STATUS_FILE = "status.txt"
 
@@ -37,8 +38,32 @@ def table(levels):
         row.update(reason=lv.outcome.reason, linear_its=lv.outcome.linear_its,
                    final_residual=lv.outcome.residuals[-1] if lv.outcome.residuals else None)
         row.update(lv.extra)
+        row.update(lv.timings)
         rows.append(row)
+    cumulative = 0.0
+    for row in rows:  # failed levels cost time too
+        cumulative += row["time_s"] or 0.0
+        row["cumulative_time_s"] = cumulative
     return rows
+
+
+def is_timing(column):
+    """Whether a table column is a measured time or memory (differs from run to run)."""
+    return (column in ("time_s", "cumulative_time_s", "peak_memory_mb", "floor_ratio", "reference_time_s")
+            or column.startswith("t_"))
+
+
+def error_columns(rows):
+    """The error columns of a table: each X with a rate_X column (L2, H1, Γ_C and reference norms)."""
+    return [column[len("rate_"):] for column in (rows[0] if rows else {}) if column.startswith("rate_")]
+
+
+def work_precision_rows(rows):
+    """Error against cost, one row per (norm, level) with an error: the level's own wall time and the
+    cumulative wall time of the study up to it (what an error costs from scratch)."""
+    return [{"norm": norm, "level": row["level"], "N": row["N"], "dofs": row["dofs"], "error": row[norm],
+             "time_s": row["time_s"], "cumulative_time_s": row["cumulative_time_s"]}
+            for norm in error_columns(rows) for row in rows if row.get(norm) is not None]
 
 
 def write(cfg, levels, comm=MPI.COMM_WORLD, status=None):
@@ -61,6 +86,8 @@ def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
     files.replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
     summary_text = csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
     files.replace(folder / "summary.csv", lambda path: path.write_text(summary_text))
+    work_text = csv_text(work_precision_rows(rows), WORK_PRECISION_COLUMNS)
+    files.replace(folder / "work_precision.csv", lambda path: path.write_text(work_text))
     files.replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
     if status is not None:
         files.replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
@@ -154,7 +181,7 @@ def git_revision():
 def _write_table(group, rows):
     group.attrs["columns"] = list(rows[0]) if rows else []  # HDF5 lists datasets by name, not in order
     for column in (rows[0] if rows else {}):
-        values = [row[column] for row in rows]
+        values = [row.get(column) for row in rows]  # a column some rows lack (limit studies) is NaN there
         if all(isinstance(v, str) for v in values):
             group.create_dataset(column, data=[v.encode() for v in values])
         else:

@@ -5,7 +5,7 @@ from . import config, results, solver
 from .config import ConfigError
 
 # row columns that Level's own fields and Outcome produce (results.table); any other is Level.extra
-OWN_COLUMNS = (set(results.SPEC_COLUMNS) | set(results.EXTRA_COLUMNS)
+OWN_COLUMNS = (set(results.SPEC_COLUMNS) | set(results.EXTRA_COLUMNS) | {"cumulative_time_s"}
                | {f"rate_{norm}" for norm in results.NORMS})
 
 
@@ -83,9 +83,11 @@ def _level(group, columns):
                              newton_its=int(a["newton_its"]), linear_its=int(a["linear_its"]),
                              residuals=tuple(float(r) for r in group["residuals"][()]))
     errors = {name[len("measured_"):]: float(a[name]) for name in a if name.startswith("measured_")}
-    extra = {c: _plain(a[c]) if c in a else None for c in columns if c not in OWN_COLUMNS}
+    row = {c: _plain(a[c]) if c in a else None for c in columns if c not in OWN_COLUMNS}
+    extra = {c: v for c, v in row.items() if not results.is_timing(c) or c == "reference_time_s"}
+    timings = {c: v for c, v in row.items() if c not in extra}
     return Level(int(a["level"]), int(a["N"]), float(a["h"]), int(a["dofs"]), float(a["epsilon"]),
-                 outcome, errors, float(a["time_s"]), extra)
+                 outcome, errors, float(a["time_s"]), extra, timings=timings)
 
 
 def _plain(value):

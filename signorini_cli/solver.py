@@ -3,14 +3,18 @@ that cannot pass far from the solution, NaN/Inf detection, and a Jacobian condit
 import dataclasses
 import itertools
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
 import ufl
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
+
+from .timing import Phases
 
 REASONS = {getattr(PETSc.SNES.ConvergedReason, name): name
            for name in dir(PETSc.SNES.ConvergedReason) if name.isupper()}
@@ -44,25 +48,38 @@ class Outcome:
     linear_fallback: bool = field(default=False, compare=False)
     steps: tuple = field(default=(), compare=False)
     correction: float = field(default=None, compare=False)  # last Newton correction / ||u_h||: the error estimate
+    floor_s: float = field(default=None, compare=False)  # the level's linear floor (NewtonSolver.linear_floor)
 
 
-def linear_kind(solver_cfg, dim):
-    """'direct' or 'iterative': linear: auto is MUMPS LU in 2-D and CG + AMG in 3-D
-    (32^3 cells: 3.5 s against 23 s)."""
+# linear: auto solves 2-D levels up to this many dofs with MUMPS (robust on the 1/eps boundary rows of
+# the stiff suite, whose levels stay below it) and larger ones with CG + AMG: at N = 512 (263k dofs),
+# 2.7 times less Newton time and 1.8 times less peak memory (make bench, bench/results.md)
+DIRECT_MAX_DOFS_2D = 100_000
+
+
+def linear_kind(solver_cfg, dim, dofs=0):
+    """'direct' or 'iterative': linear: auto is MUMPS LU in 2-D up to DIRECT_MAX_DOFS_2D dofs and
+    CG + AMG above, and in 3-D (32^3 cells: 3.5 s against 23 s)."""
     if solver_cfg.linear != "auto":
         return solver_cfg.linear
-    return "direct" if dim == 2 else "iterative"
+    return "direct" if dim == 2 and dofs <= DIRECT_MAX_DOFS_2D else "iterative"
 
 
-def petsc_options(solver_cfg, dim, linear=None):
-    """The PETSc options a solver config stands for (`linear` overrides the linear solver kind, as
-    the fallback to direct does); the user's petsc_options come last and win. The SNES tolerances
-    serve PETSc's own test only (vinewtonrsls): SuccessTest replaces it in the compliance solves."""
+def global_dofs(V):
+    """The number of unknowns of V over all ranks."""
+    return V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+
+
+def petsc_options(solver_cfg, dim, linear=None, dofs=0):
+    """The PETSc options a solver config stands for on a level with `dofs` unknowns (`linear`
+    overrides the linear solver kind, as the fallback to direct does); the user's petsc_options come
+    last and win. The SNES tolerances serve PETSc's own test only (vinewtonrsls): SuccessTest
+    replaces it in the compliance solves."""
     opts = {"snes_type": solver_cfg.method, "snes_max_it": solver_cfg.max_it,
             "snes_rtol": solver_cfg.rtol, "snes_atol": solver_cfg.atol, "snes_stol": 0.0}
     if solver_cfg.method == "newtonls":
         opts["snes_linesearch_type"] = solver_cfg.line_search
-    if (linear or linear_kind(solver_cfg, dim)) == "direct":
+    if (linear or linear_kind(solver_cfg, dim, dofs)) == "direct":
         opts.update(ksp_type="preonly", pc_type="lu", pc_factor_mat_solver_type="mumps")
     else:
         opts.update(ksp_type="cg", ksp_rtol=solver_cfg.linear_rtol, **_multigrid(solver_cfg.preconditioner))
@@ -136,14 +153,17 @@ class NewtonSolver:
     """SNES on F(u) = 0 with Jacobian J, Dirichlet conditions `bcs`; u holds the initial guess.
     `test`, a SuccessTest (its scale measured at every solve), replaces PETSc's convergence test;
     without one PETSc's own test runs on the options' tolerances (vinewtonrsls, whose residual is
-    the reduced one). `monitor(snes, its, fnorm)` is called at every Newton iteration."""
+    the reduced one). `monitor(snes, its, fnorm)` is called at every Newton iteration; `phases`
+    (timing.Phases) records form compilation and the residual and Jacobian assemblies."""
 
-    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None):
-        self.L, self.a, self.u, self.bcs = fem.form(F), fem.form(J), u, bcs
-        self.L_load = fem.form(load_part(F))
-        self.test = test
+    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None, phases=None):
+        self.phases = phases or Phases()
+        with self.phases("forms"):
+            self.L, self.a, self.L_load = fem.form(F), fem.form(J), fem.form(load_part(F))
+        self.u, self.bcs, self.test = u, bcs, test
         self.b = fem_petsc.create_vector(self.L)
-        self.A = fem_petsc.create_matrix(self.a)
+        with self.phases("assemble_jacobian"):  # the sparsity pattern: part of the Jacobian's cost
+            self.A = fem_petsc.create_matrix(self.a)
         self.x = u.vector.duplicate()  # SNES's own iterate: never u.vector, which F() overwrites
         self.snes = PETSc.SNES().create(u.function_space.mesh.comm)
         self.snes.setFunction(self._residual, self.b)
@@ -243,6 +263,11 @@ class NewtonSolver:
         return norm
 
     def _residual(self, snes, x, F):
+        with self.phases("assemble_residual"):
+            self.assemble_residual(x, F)
+
+    def assemble_residual(self, x, F):
+        """F(x) with the Dirichlet rows x - u_D, leaving x in u."""
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         x.copy(self.u.vector)
         self.u.x.scatter_forward()
@@ -254,9 +279,35 @@ class NewtonSolver:
         fem_petsc.set_bc(F, self.bcs, x, -1.0)
 
     def _jacobian(self, snes, x, J, P):
+        with self.phases("assemble_jacobian"):
+            self.assemble_jacobian(J)
+
+    def assemble_jacobian(self, J):
+        """J at the iterate in u, identity rows on Γ_D."""
         J.zeroEntries()
         fem_petsc.assemble_matrix(J, self.a, bcs=self.bcs)
         J.assemble()
+
+    def linear_floor(self):
+        """Seconds to assemble and solve once the Jacobian system at the current u with this solver's
+        own linear solver and tolerance, in a fresh KSP: the floor a Newton solve is measured against."""
+        A, b, x = self.A.duplicate(), self.b.duplicate(), self.x.duplicate()
+        ksp = PETSc.KSP().create(self.u.function_space.mesh.comm)
+        ksp.setOptionsPrefix(self.prefix)
+        ksp.setFromOptions()
+        self.u.vector.copy(x)
+        comm = self.u.function_space.mesh.comm
+        comm.barrier()
+        start = time.perf_counter()
+        self.assemble_jacobian(A)
+        self.assemble_residual(x, b)
+        ksp.setOperators(A)
+        x.set(0.0)
+        ksp.solve(b, x)
+        seconds = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+        for obj in (ksp, A, b, x):
+            obj.destroy()
+        return seconds
 
     def _record_direction(self, x, y):
         """Line-search pre-check: remember the full Newton direction's norm and the iterate it starts

@@ -14,7 +14,7 @@ def report(cfg, problem, domain, outcome, dofs):
     solver_cfg, columns = cfg.solver, {}
     if solver_cfg.strategy in ("continuation", "auto"):
         columns["continuation_steps"] = outcome.continuation_steps
-    if solver.linear_kind(solver_cfg, problem.dim) == "iterative" and solver_cfg.linear_fallback:
+    if solver.linear_kind(solver_cfg, problem.dim, dofs) == "iterative" and solver_cfg.linear_fallback:
         columns["linear_fallback"] = outcome.linear_fallback
     columns["final_correction"] = outcome.correction
     if "penetration" not in verification.measures(cfg):  # else the verification column has it

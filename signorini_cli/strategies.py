@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from dolfinx import fem
 
 from . import solver
+from .timing import Phases
 from .transfer import transfer
 
 logger = logging.getLogger(__name__)
@@ -28,13 +29,19 @@ class Problem:
     dim: int
 
 
-def solve(solver_cfg, problem, previous=None, monitor=None):
+def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
     """Solve `problem` by solver_cfg.strategy, `previous` being the last converged level's u_h
     (or None); u_h ends as the final iterate. Returns the level's Outcome. `monitor(snes, its, fnorm)`
-    sees every Newton iteration of every solve."""
-    newton = Newton(solver_cfg, problem, monitor)
+    sees every Newton iteration of every solve; `phases` (timing.Phases) gets the solve's times and,
+    with solver.linear_floor, the level's linear floor (Outcome.floor_s)."""
+    phases = phases or Phases()
+    newton = Newton(solver_cfg, problem, monitor, phases)
     try:
-        return STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg)
+        with phases("newton"):
+            outcome = STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg)
+        if solver_cfg.linear_floor and outcome.converged:
+            outcome = dataclasses.replace(outcome, floor_s=newton.snes.linear_floor())
+        return outcome
     finally:
         newton.destroy()
 
@@ -129,12 +136,13 @@ class Newton:
     """One level's SNES, run at any eps; falls back to a direct linear solve (for the rest of the
     level) when an iterative one fails and linear_fallback is on."""
 
-    def __init__(self, solver_cfg, problem, monitor=None):
+    def __init__(self, solver_cfg, problem, monitor=None, phases=None):
         self.cfg, self.problem = solver_cfg, problem
-        self.linear = solver.linear_kind(solver_cfg, problem.dim)
+        dofs = solver.global_dofs(problem.u_h.function_space)
+        self.linear = solver.linear_kind(solver_cfg, problem.dim, dofs)
         self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs,
-                                        solver.petsc_options(solver_cfg, problem.dim), monitor=monitor,
-                                        test=solver.success_test(solver_cfg))
+                                        solver.petsc_options(solver_cfg, problem.dim, dofs=dofs), monitor=monitor,
+                                        test=solver.success_test(solver_cfg), phases=phases)
         self.fell_back = False
 
     def run(self, eps):

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 from mpi4py import MPI
 from dolfinx import fem
 
-from . import fields, meshes, measure, model, solver, stability, strategies
+from . import fields, meshes, measure, model, solver, stability, strategies, timing
 from .meshes import DIRICHLET
 from . import verification
 
@@ -23,6 +23,7 @@ class Level:
     time_s: float
     extra: dict = field(default_factory=dict)
     solution: object = field(default=None, repr=False, compare=False)  # u_h, for nested iteration
+    timings: dict = field(default_factory=dict, compare=False)  # t_* phases, memory (timing_columns)
 
 
 def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
@@ -72,9 +73,11 @@ def resume_verifier(cfg, done, comm, verifier):
 
 def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None, previous=None):
     """Build, solve and measure the level with n cells per side (or the level's entry of mesh.levels);
-    `previous`, the last converged level's u_h, is the initial guess of nested strategies."""
-    start = time.perf_counter()
-    domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
+    `previous`, the last converged level's u_h, is the initial guess of nested strategies.
+    time_s is the level's wall time from mesh to measures; the t_* columns split it (timing.PHASES)."""
+    start, phases = time.perf_counter(), timing.Phases()
+    with phases("mesh"):
+        domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
     eps_value = cfg.epsilon(domain.h)
     eps = fem.Constant(domain.mesh, eps_value)
@@ -82,18 +85,32 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     forms = model.forms(cfg, domain, u_h, eps)
     bcs = [dirichlet_condition(V, domain, forms.u_exact)]
     problem = strategies.Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, cfg.dimension)
-    outcome = strategies.solve(cfg.solver, problem, previous, monitor)
-    # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
-    errors = measure.errors(u_h, forms.u_exact) if forms.u_exact is not None else {}
-    elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
-    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+    outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
+    dofs = solver.global_dofs(V)
+    extra = dict(domain.columns, **stability.report(cfg, problem, domain, outcome, dofs))
+    with phases("errors"):
+        # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
+        errors = measure.errors(u_h, forms.u_exact) if forms.u_exact is not None else {}
+        level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
+        if verifier is not None:  # Γ_C measures, reference errors (issue 4)
+            verifier.measure(level, domain, u_h, forms)
+    reference_s = level.extra.get("reference_time_s") or 0.0  # its own column, in neither time_s nor t_errors
+    phases.deduct("errors", reference_s)
     if cfg.output.fields:
-        fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
-    extra = dict(domain.columns, **stability.report(cfg, problem, domain, outcome, dofs))  # not in time_s
-    level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, elapsed, extra, u_h)
-    if verifier is not None:  # Γ_C measures, reference errors (issue 4); not part of time_s
-        verifier.measure(level, domain, u_h, forms)
+        with phases("output"):
+            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
+    level.time_s = comm.allreduce(time.perf_counter() - start - reference_s, op=MPI.MAX)
+    level.timings = timing_columns(outcome, phases, comm)
     return level
+
+
+def timing_columns(outcome, phases, comm):
+    """The level's t_* phase times, its peak memory and, when measured, its linear floor and the
+    ratio of the Newton solve to it (issue 6); t_output grows when results.write records the level."""
+    columns = dict(phases.columns(comm), peak_memory_mb=timing.peak_memory_mb(comm))
+    if outcome.floor_s is not None:
+        columns.update(t_linear_floor=outcome.floor_s, floor_ratio=columns["t_newton"] / outcome.floor_s)
+    return columns
 
 
 def dirichlet_condition(V, domain, u_exact):

@@ -46,12 +46,10 @@ def evaluate(u, points):
     n_cells = msh.topology.index_map(tdim).size_local
     tree = geometry.BoundingBoxTree(msh, tdim, np.arange(n_cells, dtype=np.int32))
     colliding = geometry.compute_colliding_cells(msh, geometry.compute_collisions(tree, points), points)
+    first, end = colliding.offsets[:-1], colliding.offsets[1:]
+    found = end > first  # each point's first colliding cell, if any
     cells = np.full(len(points), -1, dtype=np.int32)
-    for i in range(len(points)):
-        links = colliding.links(i)
-        if len(links):
-            cells[i] = links[0]
-    found = cells >= 0
+    cells[found] = colliding.array[first[found]]
     values = np.zeros(len(points))
     if np.any(found):
         values[found] = u.eval(points[found], cells[found])[:, 0]

@@ -144,7 +144,7 @@ def reference(cfg, index, domain, start, monitor=None):
         face = (meshes.FACES_2D if cfg.dimension == 2 else meshes.FACES_3D)[cfg.contact]
         extra["pressure_L2"] = pressure_error(forms_, u_h, domain, bc, face)
     elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
-    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+    dofs = solver.global_dofs(V)
     return Level(index, domain.n, domain.h, dofs, 0.0, outcome, errors, elapsed, extra), u_h
 
 

@@ -166,9 +166,9 @@ def solved_problem(cfg, monkeypatch):
     """The Problem of cfg's first level, solved in serial (caught on its way to strategies.solve)."""
     seen, original = [], strategies.solve
 
-    def spy(solver_cfg, problem, previous=None, monitor=None):
+    def spy(solver_cfg, problem, previous=None, monitor=None, phases=None):
         seen.append(problem)
-        return original(solver_cfg, problem, previous, monitor)
+        return original(solver_cfg, problem, previous, monitor, phases)
 
     monkeypatch.setattr(strategies, "solve", spy)
     study.solve_level(cfg, 0, cfg.mesh.refinements[0], MPI.COMM_SELF)
