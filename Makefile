@@ -80,3 +80,8 @@ limit: setup
 # the stiff suite, the regular studies with strategy auto, a delta sweep and a conditioning sweep -> docs/stability.md
 stiff: setup
 	$(PY) scripts/stability.py
+
+.PHONY: bench
+# issue 6: bench/configs/ serially, on $(NP) ranks and with three start strategies -> bench/results.md, .csv
+bench: setup
+	$(PY) scripts/bench.py

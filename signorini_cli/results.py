@@ -95,11 +95,12 @@ def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
 
 def csv_text(rows, columns=None):
     """The table as CSV: floats in full precision, empty cells for missing values; `columns`
-    defaults to the first row's keys (rows lacking a column leave it empty)."""
+    defaults to every row's keys, in order of appearance (rows lacking a column leave it empty)."""
     if not rows and columns is None:
         return ""
     out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=list(columns or rows[0]), lineterminator="\n", restval="")
+    columns = columns or list(dict.fromkeys(key for row in rows for key in row))
+    writer = csv.DictWriter(out, fieldnames=list(columns), lineterminator="\n", restval="")
     writer.writeheader()
     for row in rows:
         writer.writerow({k: _cell(v) for k, v in row.items()})

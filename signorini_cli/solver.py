@@ -55,6 +55,7 @@ class Outcome:
 # the stiff suite, whose levels stay below it) and larger ones with CG + AMG: at N = 512 (263k dofs),
 # 2.7 times less Newton time and 1.8 times less peak memory (make bench, bench/results.md)
 DIRECT_MAX_DOFS_2D = 100_000
+LAG_PRECONDITIONER = 2  # CG + AMG: set up the preconditioner at Newton steps 0, 2, 4 ... (make bench)
 
 
 def linear_kind(solver_cfg, dim, dofs=0):
@@ -83,6 +84,9 @@ def petsc_options(solver_cfg, dim, linear=None, dofs=0):
         opts.update(ksp_type="preonly", pc_type="lu", pc_factor_mat_solver_type="mumps")
     else:
         opts.update(ksp_type="cg", ksp_rtol=solver_cfg.linear_rtol, **_multigrid(solver_cfg.preconditioner))
+        # the AMG hierarchy of every other Newton step serves the next one too: CG still solves with
+        # the true Jacobian (unlike a lagged LU, a chord method), and nested iteration needs 2 steps
+        opts["snes_lag_preconditioner"] = LAG_PRECONDITIONER
         if solver_cfg.inexact:
             opts["snes_ksp_ew"] = ""  # Eisenstat-Walker: linear tolerance from the Newton residual
     opts.update(dict(solver_cfg.petsc_options))
@@ -154,16 +158,29 @@ class NewtonSolver:
     `test`, a SuccessTest (its scale measured at every solve), replaces PETSc's convergence test;
     without one PETSc's own test runs on the options' tolerances (vinewtonrsls, whose residual is
     the reduced one). `monitor(snes, its, fnorm)` is called at every Newton iteration; `phases`
-    (timing.Phases) records form compilation and the residual and Jacobian assemblies."""
+    (timing.Phases) records form compilation and the residual and Jacobian assemblies. With `split`
+    (model.Split) the load and the stiffness are assembled once per solve, and each Newton iteration
+    assembles only the rest (the contact term, and the stiffness times u with one quadrature point)."""
 
-    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None, phases=None):
+    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None, phases=None, split=None):
         self.phases = phases or Phases()
         with self.phases("forms"):
-            self.L, self.a, self.L_load = fem.form(F), fem.form(J), fem.form(load_part(F))
+            self.L, self.a = fem.form(F), fem.form(J)  # whole forms: sparsity, lifting, the linear floor
+            varying = F if split is None else split.F_varying
+            self.L_vary = self.L if split is None else fem.form(varying)
+            self.a_vary = None if split is None else fem.form(split.J_varying)
+            self.fixed = None if split is None else (fem.form(split.F_fixed), fem.form(split.J_fixed))
+            self.L_load = fem.form(load_part(varying))
+        self.b_fixed = self.K = None  # the split's load vector and stiffness matrix (assemble_fixed)
         self.u, self.bcs, self.test = u, bcs, test
         self.b = fem_petsc.create_vector(self.L)
         with self.phases("assemble_jacobian"):  # the sparsity pattern: part of the Jacobian's cost
             self.A = fem_petsc.create_matrix(self.a)
+            if self.fixed is not None:  # the split's stiffness, in J's pattern, identity rows on Γ_D
+                self.K = self.A
+                fem_petsc.assemble_matrix(self.K, self.fixed[1], bcs=self.bcs)
+                self.K.assemble()
+                self.A = self.K.duplicate(copy=True)  # PETSc copies only onto an assembled matrix
         self.x = u.vector.duplicate()  # SNES's own iterate: never u.vector, which F() overwrites
         self.snes = PETSc.SNES().create(u.function_space.mesh.comm)
         self.snes.setFunction(self._residual, self.b)
@@ -193,6 +210,8 @@ class NewtonSolver:
         """Run Newton from the current u; return the Outcome and leave the iterate in u."""
         self.u.vector.copy(self.x)
         fem_petsc.set_bc(self.x, self.bcs)  # start from an iterate that satisfies u = u_D on Γ_D
+        if self.fixed is not None:
+            self.assemble_fixed()
         self._test = dataclasses.replace(self.test, scale=self.load_scale()) if self.test else None
         self._direction, self._previous, self._confirmed, self._extra_linear_its = None, None, None, 0
         self._before, self._full = self.x.duplicate(), (False, False)  # iterate before the step; full steps
@@ -240,7 +259,7 @@ class NewtonSolver:
         x_D.set(0.0)
         fem_petsc.set_bc(x_D, self.bcs)
         saved = self.u.vector.copy()
-        scale = self._assembled_norm(self.L_load, x_D) or self._assembled_norm(self.L, x_D) or 1.0
+        scale = self._assembled_norm(self.L_load, x_D) or self._assembled_norm(self.L_vary, x_D) or 1.0
         saved.copy(self.u.vector)
         self.u.x.scatter_forward()
         for vec in (x_D, saved):
@@ -248,14 +267,31 @@ class NewtonSolver:
         return scale
 
     def destroy(self):
-        for obj in (self.snes, self.A, self.b, self.x):
-            obj.destroy()
+        for obj in (self.snes, self.A, self.b, self.x, self.K, self.b_fixed):
+            if obj is not None:
+                obj.destroy()
         _clear_options(self.prefix)
+
+    def assemble_fixed(self):
+        """The split's load vector, at this solve's eps (manufactured data may depend on it), kept
+        before its ghost update: each residual adds it."""
+        with self.phases("assemble_residual"):
+            self.b_fixed = self.b_fixed or fem_petsc.create_vector(self.fixed[0])
+            with self.b_fixed.localForm() as b_local:
+                b_local.set(0.0)
+            fem_petsc.assemble_vector(self.b_fixed, self.fixed[0])
+
+    def _add_fixed(self, b):
+        """b += the split's load, on the local and ghost entries (before b's ghost update)."""
+        if self.b_fixed is not None:
+            with b.localForm() as b_local, self.b_fixed.localForm() as fixed_local:
+                b_local.array_w[:] += fixed_local.array_r
 
     def _assembled_norm(self, L, x):
         x.copy(self.u.vector)
         self.u.x.scatter_forward()
         b = fem_petsc.assemble_vector(L)
+        self._add_fixed(b)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(b, self.bcs, x, -1.0)
         norm = b.norm()
@@ -266,14 +302,17 @@ class NewtonSolver:
         with self.phases("assemble_residual"):
             self.assemble_residual(x, F)
 
-    def assemble_residual(self, x, F):
-        """F(x) with the Dirichlet rows x - u_D, leaving x in u."""
+    def assemble_residual(self, x, F, whole=False):
+        """F(x) with the Dirichlet rows x - u_D, leaving x in u; `whole`: from the whole form, as if
+        there were no split."""
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         x.copy(self.u.vector)
         self.u.x.scatter_forward()
         with F.localForm() as f_local:
             f_local.set(0.0)
-        fem_petsc.assemble_vector(F, self.L)
+        fem_petsc.assemble_vector(F, self.L if whole else self.L_vary)
+        if not whole:
+            self._add_fixed(F)
         fem_petsc.apply_lifting(F, [self.a], bcs=[self.bcs], x0=[x], scale=-1.0)
         F.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(F, self.bcs, x, -1.0)
@@ -282,10 +321,15 @@ class NewtonSolver:
         with self.phases("assemble_jacobian"):
             self.assemble_jacobian(J)
 
-    def assemble_jacobian(self, J):
-        """J at the iterate in u, identity rows on Γ_D."""
-        J.zeroEntries()
-        fem_petsc.assemble_matrix(J, self.a, bcs=self.bcs)
+    def assemble_jacobian(self, J, whole=False):
+        """J at the iterate in u, identity rows on Γ_D: the split's stiffness plus the rest, or
+        (`whole`, or no split) the whole form."""
+        if self.K is None or whole:
+            J.zeroEntries()
+            fem_petsc.assemble_matrix(J, self.a, bcs=self.bcs)
+        else:
+            self.K.copy(J, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            fem_petsc.assemble_matrix(J, self.a_vary, bcs=self.bcs)  # adds; Γ_D diagonal stays 1
         J.assemble()
 
     def linear_floor(self):
@@ -299,8 +343,8 @@ class NewtonSolver:
         comm = self.u.function_space.mesh.comm
         comm.barrier()
         start = time.perf_counter()
-        self.assemble_jacobian(A)
-        self.assemble_residual(x, b)
+        self.assemble_jacobian(A, whole=True)
+        self.assemble_residual(x, b, whole=True)
         ksp.setOperators(A)
         x.set(0.0)
         ksp.solve(b, x)

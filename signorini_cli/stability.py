@@ -1,5 +1,7 @@
 """The per-level stability report: continuation steps, linear fallback, the final Newton correction,
 the penetration max_Γc [u_h]_+, and on request the Jacobian's condition number (Level.extra columns)."""
+import math
+
 from dolfinx import fem
 
 from . import measure, solver, verification
@@ -14,7 +16,8 @@ def report(cfg, problem, domain, outcome, dofs):
     solver_cfg, columns = cfg.solver, {}
     if solver_cfg.strategy in ("continuation", "auto"):
         columns["continuation_steps"] = outcome.continuation_steps
-    if solver.linear_kind(solver_cfg, problem.dim, dofs) == "iterative" and solver_cfg.linear_fallback:
+    # on every level of a study whose larger levels may solve iteratively (linear: auto in 2-D)
+    if solver.linear_kind(solver_cfg, problem.dim, math.inf) == "iterative" and solver_cfg.linear_fallback:
         columns["linear_fallback"] = outcome.linear_fallback
     columns["final_correction"] = outcome.correction
     if "penetration" not in verification.measures(cfg):  # else the verification column has it

@@ -27,6 +27,7 @@ class Problem:
     eps: fem.Constant
     eps_target: float
     dim: int
+    split: object = None  # model.Split: Newton assembles the load and stiffness once per solve
 
 
 def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
@@ -34,11 +35,9 @@ def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
     (or None); u_h ends as the final iterate. Returns the level's Outcome. `monitor(snes, its, fnorm)`
     sees every Newton iteration of every solve; `phases` (timing.Phases) gets the solve's times and,
     with solver.linear_floor, the level's linear floor (Outcome.floor_s)."""
-    phases = phases or Phases()
-    newton = Newton(solver_cfg, problem, monitor, phases)
+    newton = Newton(solver_cfg, problem, monitor, phases or Phases())
     try:
-        with phases("newton"):
-            outcome = STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg)
+        outcome = STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg)
         if solver_cfg.linear_floor and outcome.converged:
             outcome = dataclasses.replace(outcome, floor_s=newton.snes.linear_floor())
         return outcome
@@ -48,25 +47,25 @@ def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
 
 def plain(newton, problem, previous, solver_cfg):
     """Newton from u_h = 0 (u_D on Γ_D) at the target eps."""
-    initial_guess(problem.u_h, None)
+    newton.initial_guess(None)
     return newton.run(problem.eps_target)
 
 
 def nested(newton, problem, previous, solver_cfg):
     """Newton at the target eps from the previous level's solution (nested iteration)."""
-    initial_guess(problem.u_h, previous)
+    newton.initial_guess(previous)
     return newton.run(problem.eps_target)
 
 
 def continuation(newton, problem, previous, solver_cfg):
     """eps-continuation from u_h = 0."""
-    initial_guess(problem.u_h, None)
+    newton.initial_guess(None)
     return continue_eps(newton, problem, solver_cfg.continuation)
 
 
 def auto(newton, problem, previous, solver_cfg):
     """Nested iteration; if Newton fails at the target eps, eps-continuation from the same guess."""
-    initial_guess(problem.u_h, previous)
+    newton.initial_guess(previous)
     guess = problem.u_h.x.array.copy()
     first = newton.run(problem.eps_target)
     if first.converged:
@@ -142,11 +141,20 @@ class Newton:
         self.linear = solver.linear_kind(solver_cfg, problem.dim, dofs)
         self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs,
                                         solver.petsc_options(solver_cfg, problem.dim, dofs=dofs), monitor=monitor,
-                                        test=solver.success_test(solver_cfg), phases=phases)
+                                        test=solver.success_test(solver_cfg), phases=phases, split=problem.split)
         self.fell_back = False
 
+    def initial_guess(self, previous):
+        """u_h = 0 or the previous level's solution (initial_guess), timed as phase 'transfer'."""
+        with self.snes.phases("transfer"):
+            initial_guess(self.problem.u_h, previous)
+
     def run(self, eps):
-        """One SNES solve at `eps` from the current u_h."""
+        """One SNES solve at `eps` from the current u_h (with a fallback solve: both timed as 'newton')."""
+        with self.snes.phases("newton"):
+            return self._run(eps)
+
+    def _run(self, eps):
         self.problem.eps.value = eps
         start = self.problem.u_h.x.array.copy()
         outcomes = [self.snes.solve()]

@@ -7,10 +7,11 @@ import numpy as np
 from mpi4py import MPI
 
 # a level's phases, in table order; `linear` and `pc_setup` come from PETSc's event log, the rest
-# are wall clocks. PETSc logs KSPSolve without the PCSetUp it triggers first (the LU factorisation or
+# are wall clocks (transfer: the initial guess, nested iteration's move of the previous level's u_h;
+# newton: the SNES solves). PETSc logs KSPSolve without the PCSetUp it triggers first (the LU factorisation or
 # the AMG set-up), so linear = KSPSolve + PCSetUp, and pc_setup is that part of it.
-PHASES = ("mesh", "forms", "assemble_residual", "assemble_jacobian", "linear", "pc_setup", "newton",
-          "errors", "output")
+PHASES = ("mesh", "forms", "transfer", "assemble_residual", "assemble_jacobian", "linear", "pc_setup",
+          "newton", "errors", "output")
 PETSC_EVENTS = {"linear": ("KSPSolve", "PCSetUp"), "pc_setup": ("PCSetUp",)}
 
 

@@ -26,7 +26,9 @@ def test_stability_columns_follow_the_config(make_config):
         return rows, [c for c in rows[0] if c in stability.SOLVER_COLUMNS]
 
     # 2-D direct solve, no continuation, no condition asked for
-    assert columns(strategy="nested")[1] == ["final_correction"]
+    assert columns(strategy="nested", linear="direct")[1] == ["final_correction"]
+    # linear: auto turns iterative above solver.DIRECT_MAX_DOFS_2D: its fallback column on every level
+    assert columns(strategy="nested")[1] == ["linear_fallback", "final_correction"]
     rows, names = columns(linear="iterative", condition_max_dofs=30)
     assert names == ["continuation_steps", "linear_fallback", "final_correction", "condition"]
     assert rows[0]["condition"] > 1 and rows[1]["condition"] is None  # 25 dofs <= 30 < 81

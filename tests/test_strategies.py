@@ -51,7 +51,8 @@ def test_auto_converges_where_plain_fails(make_config):
     cfg = make_config(**STIFF, mesh={"refinements": [64]})
     (plain,) = study.run_study(make_config(**STIFF, mesh={"refinements": [64]}, solver={"strategy": "plain"}),
                                comm=MPI.COMM_SELF)
-    assert not plain.outcome.converged and plain.outcome.reason == "DIVERGED_LINE_SEARCH"
+    # plain Newton stalls (DIVERGED_LINE_SEARCH) or wanders (DIVERGED_MAX_IT), by round-off in the 1/eps terms
+    assert not plain.outcome.converged and plain.outcome.reason in ("DIVERGED_LINE_SEARCH", "DIVERGED_MAX_IT")
     (auto,) = study.run_study(cfg, comm=MPI.COMM_SELF)
     assert auto.outcome.converged and auto.extra["continuation_steps"] >= 1
     # the solution, not a stalled iterate: L2 4.056e-4 on N = 64 is the trend of its neighbours
@@ -69,7 +70,7 @@ def test_failed_level_out_of_rates_and_exit_1(tmp_path):
     with open(tmp_path / "t" / "rates.csv") as f:
         rows = list(csv.DictReader(f))
     assert [row["converged"] for row in rows] == ["true", "false", "true"]
-    assert rows[1]["reason"] == "DIVERGED_LINE_SEARCH" and rows[1]["L2"] == rows[1]["rate_L2"] == ""
+    assert rows[1]["reason"] in ("DIVERGED_LINE_SEARCH", "DIVERGED_MAX_IT") and rows[1]["L2"] == rows[1]["rate_L2"] == ""
     h = [float(row["h"]) for row in rows]
     l2 = [float(rows[0]["L2"]), float(rows[2]["L2"])]
     # level 2's rate is taken against level 0, skipping the failed level
