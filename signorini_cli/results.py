@@ -49,7 +49,8 @@ def table(levels):
 
 def is_timing(column):
     """Whether a table column is a measured time or memory (differs from run to run)."""
-    return (column in ("time_s", "cumulative_time_s", "peak_memory_mb", "floor_ratio", "reference_time_s")
+    return (column in ("time_s", "cumulative_time_s", "peak_memory_mb", "peak_memory_mesh_mb", "floor_ratio",
+                       "reference_time_s")
             or column.startswith("t_"))
 
 

@@ -52,9 +52,9 @@ class Outcome:
 
 
 # linear: auto solves 2-D levels up to this many dofs with MUMPS (robust on the 1/eps boundary rows of
-# the stiff suite, whose levels stay below it) and larger ones with CG + AMG: at N = 512 (263k dofs),
-# 2.7 times less Newton time and 1.8 times less peak memory (make bench, bench/results.md)
-DIRECT_MAX_DOFS_2D = 100_000
+# the stiff suite, whose levels stay below it) and larger ones with CG + AMG, faster and smaller there
+# (make bench: bench/results.md, "Solver choices")
+DIRECT_MAX_DOFS_2D = 20_000
 LAG_PRECONDITIONER = 2  # CG + AMG: set up the preconditioner at Newton steps 0, 2, 4 ... (make bench)
 
 

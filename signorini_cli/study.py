@@ -78,6 +78,7 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     start, phases = time.perf_counter(), timing.Phases()
     with phases("mesh"):
         domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
+    mesh_peak_mb = timing.peak_memory_mb(comm)
     V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
     eps_value = cfg.epsilon(domain.h)
     eps = fem.Constant(domain.mesh, eps_value)
@@ -99,8 +100,9 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     if cfg.output.fields:
         with phases("output"):
             fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
-    level.time_s = comm.allreduce(time.perf_counter() - start - reference_s, op=MPI.MAX)
-    level.timings = timing_columns(outcome, phases, comm)
+    measuring = reference_s + (outcome.floor_s or 0.0)  # the linear floor too: a measurement, not the study's work
+    level.time_s = comm.allreduce(time.perf_counter() - start - measuring, op=MPI.MAX)
+    level.timings = dict(timing_columns(outcome, phases, comm), peak_memory_mesh_mb=mesh_peak_mb)
     return level
 
 

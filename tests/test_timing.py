@@ -9,7 +9,7 @@ from signorini_cli import cli, results, study, timing
 from conftest import merge
 
 # Errors of small studies before the speed work (split assembly, lagged AMG set-up, CG + AMG above
-# 100k dofs in 2-D, vectorised transfer), measured at commit a36b394 with the same configs.
+# 20k dofs in 2-D, Kuhn-grid transfer), measured at commit a36b394 with the same configs.
 BEFORE = {
     "2d-direct": ([8, 16, 32, 64], [0.02302875422745809, 0.006129464021754069, 0.00158699924498441, 0.000404401585214019],
                   [0.5740863864425357, 0.29145611107937885, 0.14620579770892386, 0.07315297106065981]),

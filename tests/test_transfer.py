@@ -5,7 +5,7 @@ import ufl
 from mpi4py import MPI
 
 from dolfinx import fem, mesh
-from signorini_cli.transfer import transfer
+from signorini_cli.transfer import evaluate, kuhn_grid, kuhn_transfer, transfer
 
 MESHES = [
     pytest.param(lambda comm, n: mesh.create_unit_square(comm, n, n), id="2d"),
@@ -76,3 +76,42 @@ def test_transfer_extend_outside_serial():
 def test_transfer_extend_outside_two_ranks():
     assert MPI.COMM_WORLD.size == 2
     check_extend_outside(MPI.COMM_WORLD)
+
+
+def check_kuhn_fast_path(comm):
+    """The closed-form P1 interpolant on the built-in Kuhn grids is the source itself at any point:
+    it matches point evaluation (search in the source's cells) also on a non-nested target."""
+    for make, coarse_n, fine_n in ((lambda n: mesh.create_unit_square(comm, n, n), 8, 12),
+                                   (lambda n: mesh.create_unit_cube(comm, n, n, n), 4, 6)):
+        coarse = p1_function(make(coarse_n))
+        assert kuhn_grid(coarse.function_space.mesh) == coarse_n
+        V_fine = fem.FunctionSpace(make(fine_n), ("Lagrange", 1))
+        fast = kuhn_transfer(coarse, coarse_n, V_fine)
+        owned = V_fine.dofmap.index_map.size_local
+        points = np.vstack(comm.allgather(V_fine.tabulate_dof_coordinates()[:owned]))
+        values, found = evaluate(coarse, points)
+        count, summed = found.astype(np.int32), np.where(found, values, 0.0)
+        comm.Allreduce(MPI.IN_PLACE, count, op=MPI.SUM)
+        comm.Allreduce(MPI.IN_PLACE, summed, op=MPI.SUM)
+        searched = summed / count.clip(1)  # points on a rank boundary are found twice, with one value
+        start = sum(comm.allgather(owned)[:comm.rank])
+        assert np.all(count >= 1)
+        # round-off of two evaluations of one affine function per cell
+        assert np.abs(fast.x.array[:owned] - searched[start:start + owned]).max() < 1e-13
+
+
+def test_kuhn_fast_path_serial():
+    check_kuhn_fast_path(MPI.COMM_WORLD)
+
+
+@pytest.mark.mpi
+def test_kuhn_fast_path_two_ranks():
+    assert MPI.COMM_WORLD.size == 2
+    check_kuhn_fast_path(MPI.COMM_WORLD)
+
+
+@pytest.mark.parametrize("diagonal", ["left", "crossed"])
+def test_kuhn_grid_only_for_kuhn_triangulations(diagonal):
+    msh = mesh.create_unit_square(MPI.COMM_WORLD, 8, 8, diagonal=getattr(mesh.DiagonalType, diagonal))
+    assert kuhn_grid(msh) == 0  # these take the searched path, exact on nested meshes as above
+    assert kuhn_grid(mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.array([2.0, 1.0])], [8, 4])) == 0
