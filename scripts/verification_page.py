@@ -1,8 +1,9 @@
 """docs/verification.md from the configs/paper studies' results: observed against proven rates, verdicts,
 mesh sizes. Every number on the page comes from results/<study>/{rates,summary}.csv.
 
-    python scripts/verification_page.py RESULTS_DIR CONFIG... > docs/verification.md
-"""
+    python scripts/verification_page.py RESULTS_DIR CONFIG... [--update-configs] > docs/verification.md
+
+With --update-configs each config's `# Observed` header block is rewritten from the same results."""
 import argparse
 import csv
 import sys
@@ -18,10 +19,51 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("results", type=Path, help="folder holding one results folder per study")
     parser.add_argument("configs", nargs="+", type=Path)
+    parser.add_argument("--update-configs", action="store_true",
+                        help="rewrite each config's '# Observed' header block from its results")
     args = parser.parse_args(argv)
     cases = [load_case(path, args.results) for path in args.configs]
     sys.stdout.write(page(cases))
+    if args.update_configs:
+        for case in cases:
+            update_header(case)
     return 0
+
+
+OBSERVED = "# Observed"
+HEADER_WIDTH = 110
+
+
+def update_header(case):
+    """Replace the config's comment block that starts with '# Observed' (up to the first YAML line) by the
+    fitted rates and verdicts of its latest run; a config without results or without the block is left."""
+    path, rows = case["path"], norm_rows(case)
+    lines = path.read_text().splitlines()
+    start = next((i for i, line in enumerate(lines) if line.startswith(OBSERVED)), None)
+    if start is None or not rows:
+        return
+    end = next((i for i in range(start + 1, len(lines)) if not lines[i].startswith("#")), len(lines))
+    lines[start:end] = observed_block(case, rows)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def observed_block(case, rows):
+    """'# Observed (make verify, fit over N = a..b): H1 1.00 (proven 1, agrees), ...' wrapped as comments."""
+    parts = []
+    for row in rows:
+        observed, proven = number(row["observed_rate"]), number(row["proven_rate"])
+        how = " of e/|ln h|" if row["log_factor"] == "true" else ""
+        against = f"proven {fraction(proven)}, {row['verdict']}" if proven is not None else row["verdict"]
+        parts.append(f"{row['name']} {rate(observed)}{how} ({against})")
+    fit = ", ".join(rows[0]["levels"].split())
+    text = f"{OBSERVED} (make verify, fitted over N = {fit}): " + ", ".join(parts) + "."
+    words, lines, line = text.split(" "), [], ""
+    for word in words:
+        if line and len(line) + 1 + len(word) > HEADER_WIDTH:
+            lines.append(line)
+            line = "#"
+        line = f"{line} {word}" if line else word
+    return lines + [line]
 
 
 def load_case(path, results):

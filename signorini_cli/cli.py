@@ -171,5 +171,16 @@ def setup_logging(level=logging.WARNING):
     root.handlers[:] = [handler]
     root.setLevel(level)
 
+def entry():
+    """The console script: main(), and for a bug its traceback and exit status 3 (guard.CRASH_STATUS),
+    apart from 1 (a level did not converge) and 2 (bad input)."""
+    try:
+        return main()
+    except Exception:  # main() lets a bug's exception through, with its traceback, for tests and callers
+        import traceback
+        traceback.print_exc()
+        return guard.CRASH_STATUS
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(entry())

@@ -145,6 +145,7 @@ class Verification:
     measures: tuple = None       # None: every measure the scene can have
     reference_refinements: int = 1   # data-only scenes: uniform refinements of the finest level (0: none)
     reference_epsilon: str = "per_level"  # per_level: reference at each level's eps | fixed: one eps
+    regular: bool = True  # false: u is not in W^{2,alpha+1} (corners, Γ_C meeting Γ_D): verdicts "not covered"
 
 
 @dataclass(frozen=True)
@@ -488,7 +489,7 @@ def _output(raw, path):
 
 def _verification(raw, path, problem):
     _keys(raw, path, optional=("fit_levels", "tolerance", "measures", "reference_refinements",
-                               "reference_epsilon"))
+                               "reference_epsilon", "regular"))
     data_only = isinstance(problem, dict) and "exact" not in problem
     for key in ("reference_refinements", "reference_epsilon"):
         if key in raw and not data_only:
@@ -507,7 +508,8 @@ def _verification(raw, path, problem):
         reference_refinements=_integer(raw.get("reference_refinements", 1), f"{path}.reference_refinements",
                                        low=0, high=MAX_REFERENCE_REFINEMENTS),
         reference_epsilon=_choice(raw.get("reference_epsilon", "per_level"), f"{path}.reference_epsilon",
-                                  REFERENCE_EPSILONS))
+                                  REFERENCE_EPSILONS),
+        regular=_boolean(raw.get("regular", True), f"{path}.regular"))
 
 
 def _expect(raw, path, problem):

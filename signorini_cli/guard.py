@@ -18,6 +18,7 @@ GRACE_S = 0.5
 # Testing hook, documented in README: SIGNORINI_TEST_FAIL=RANK:LEVEL makes that rank raise as that
 # level starts, like a crash inside a level (tests/test_guard.py: one rank of two fails).
 TEST_FAIL = "SIGNORINI_TEST_FAIL"
+CRASH_STATUS = 3  # a bug (an exception that is no bad input): its traceback is printed, the status kept
 
 
 class Interrupted(BaseException):
@@ -101,7 +102,7 @@ def supervise(body):
                 traceback.print_exc()
                 print(f"signorini: rank {comm.rank} failed: {_first_line(err)}; aborting all {comm.size} ranks",
                       file=sys.stderr)
-                _abort_if_parallel(comm, 1)
+                _abort_if_parallel(comm, CRASH_STATUS)
             raise
 
 

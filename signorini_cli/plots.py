@@ -99,7 +99,10 @@ def work_precision(rows, title=""):
     for i, (norm, (_, e)) in enumerate(curves.items()):
         k = [j for j in ok if rows[j].get(norm) is not None]
         left.loglog(total[k], e, label=math_label(norm), **curve_style(i))
-        right.loglog([rows[j]["time_s"] for j in k], e, label=math_label(norm), **curve_style(i))
+        # in order of time: the coarsest levels' times (form compilation) need not grow with the level
+        order = np.argsort([rows[j]["time_s"] for j in k], kind="stable")
+        right.loglog(np.array([rows[j]["time_s"] for j in k])[order], np.asarray(e)[order],
+                     label=math_label(norm), **curve_style(i))
     left.set_xlabel("cumulative wall time [s]")
     right.set_xlabel("wall time of the level [s]")
     left.set_ylabel("error")

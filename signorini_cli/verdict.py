@@ -114,6 +114,9 @@ def expected(cfg, norm):
     if cfg.study_type == "signorini" or cfg.problem.exact_solves == "signorini":  # docs/limit.md
         return rates.Expected(None, reason="errors against the Signorini solution u_S: the paper bounds "
                                            "u_eps - u_eps,h only (total-error heuristics: docs/limit.md)")
+    if not cfg.verification.regular:  # the user says the paper's regularity hypothesis fails
+        return rates.Expected(None, reason="the paper's rates assume u in W^{2,alpha+1}; this scene's solution "
+                                           "is singular (verification.regular: false, Remark 3.4)")
     p = rates.law_exponent(cfg.epsilon)
     if norm.startswith("diff_") and p != 0:
         return rates.Expected(None, reason="successive levels have different eps, so their difference "

@@ -221,9 +221,19 @@ def test_one_rank_fails_both_end(tmp_path):
     env = dict(os.environ, **MPI_ENV, **{guard.TEST_FAIL: "1:1"})
     done = subprocess.run(["mpirun", "-q", "-n", "2", SIGNORINI, "run", config, "--output", str(out)],
                           capture_output=True, text=True, env=env, timeout=60)
-    assert done.returncode != 0
+    assert done.returncode == guard.CRASH_STATUS  # MPI_Abort's code, through mpirun
     assert done.stderr.count("Traceback") == 1, done.stderr
     assert "signorini: rank 1 failed: RuntimeError: SIGNORINI_TEST_FAIL=1:1" in done.stderr
     assert status(out) == ("failed at level 1: RuntimeError: SIGNORINI_TEST_FAIL=1:1: rank 1 fails at the "
                            "start of level 1")
     assert [row["level"] for row in table(out)] == ["0"]
+
+
+def test_crash_exits_3_with_one_traceback(tmp_path):
+    """The console script keeps a bug's traceback and exits 3, apart from 1 (not converged) and 2 (bad input)."""
+    config, out = write_config(tmp_path), tmp_path / "out"
+    env = dict(os.environ, **{guard.TEST_FAIL: "0:1"})
+    done = subprocess.run([SIGNORINI, "run", config, "--output", str(out)], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert done.returncode == guard.CRASH_STATUS and done.stderr.count("Traceback") == 1, done.stderr
+    assert status(out).startswith("failed at level 1: RuntimeError: SIGNORINI_TEST_FAIL=0:1")

@@ -49,6 +49,15 @@ def test_summarize_fits_and_judges(make_config):
     assert by_norm["L2"].levels == (10, 20, 40)  # the last fit_levels = 3 levels
 
 
+def test_singular_scene_is_not_covered_rather_than_below(make_config):
+    # the L-shape's corner: rates of a singular u (here 0.67) are no failure of the method
+    cfg = make_config(verification={"regular": False})
+    lv = levels({"L2": [h**1.33 for h in H], "H1": [h**0.67 for h in H]})
+    by_norm = {v.norm: v for v in verdict.summarize(cfg, lv).norms}
+    assert by_norm["H1"].verdict == by_norm["L2"].verdict == verdict.NOT_COVERED
+    assert "W^{2,alpha+1}" in by_norm["H1"].conditions and by_norm["H1"].observed == pytest.approx(0.67)
+
+
 def test_summarize_log_factor_case(make_config):
     cfg = make_config(alpha=3.0)  # Lemma 4.5: O(h^2 |ln h|); an error of exactly that size agrees
     lv = levels({"L2": [0.9 * h**1.95 * -math.log(h) for h in H]})
