@@ -171,16 +171,13 @@ class NewtonSolver:
             self.a_vary = None if split is None else fem.form(split.J_varying)
             self.fixed = None if split is None else (fem.form(split.F_fixed), fem.form(split.J_fixed))
             self.L_load = fem.form(load_part(varying))
-        self.b_fixed = self.K = None  # the split's load vector and stiffness matrix (assemble_fixed)
+        self.b_fixed = None  # the split's load vector (assemble_fixed)
         self.u, self.bcs, self.test = u, bcs, test
         self.b = fem_petsc.create_vector(self.L)
         with self.phases("assemble_jacobian"):  # the sparsity pattern: part of the Jacobian's cost
-            self.A = fem_petsc.create_matrix(self.a)
-            if self.fixed is not None:  # the split's stiffness, in J's pattern, identity rows on Γ_D
-                self.K = self.A
-                fem_petsc.assemble_matrix(self.K, self.fixed[1], bcs=self.bcs)
-                self.K.assemble()
-                self.A = self.K.duplicate(copy=True)  # PETSc copies only onto an assembled matrix
+            self.K = None if self.fixed is None else self.stiffness()
+            # J starts as a copy of K: PETSc copies K into J at every step only onto an assembled matrix
+            self.A = fem_petsc.create_matrix(self.a) if self.K is None else self.K.duplicate(copy=True)
         self.x = u.vector.duplicate()  # SNES's own iterate: never u.vector, which F() overwrites
         self.snes = PETSc.SNES().create(u.function_space.mesh.comm)
         self.snes.setFunction(self._residual, self.b)
@@ -271,6 +268,13 @@ class NewtonSolver:
             if obj is not None:
                 obj.destroy()
         _clear_options(self.prefix)
+
+    def stiffness(self):
+        """The split's fixed Jacobian (the stiffness) in the whole J's sparsity pattern, identity rows on Γ_D."""
+        K = fem_petsc.create_matrix(self.a)
+        fem_petsc.assemble_matrix(K, self.fixed[1], bcs=self.bcs)
+        K.assemble()
+        return K
 
     def assemble_fixed(self):
         """The split's load vector, at this solve's eps (manufactured data may depend on it), kept
