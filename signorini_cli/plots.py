@@ -99,10 +99,9 @@ def work_precision(rows, title=""):
     for i, (norm, (_, e)) in enumerate(curves.items()):
         k = [j for j in ok if rows[j].get(norm) is not None]
         left.loglog(total[k], e, label=math_label(norm), **curve_style(i))
-        # in order of time: the coarsest levels' times (form compilation) need not grow with the level
-        order = np.argsort([rows[j]["time_s"] for j in k], kind="stable")
-        right.loglog(np.array([rows[j]["time_s"] for j in k])[order], np.asarray(e)[order],
-                     label=math_label(norm), **curve_style(i))
+        # markers only: a level's own time need not grow with the level on the coarsest ones (form
+        # compilation), and a line through them would double back
+        right.loglog([rows[j]["time_s"] for j in k], e, label=math_label(norm), **dict(curve_style(i), linestyle="none"))
     left.set_xlabel("cumulative wall time [s]")
     right.set_xlabel("wall time of the level [s]")
     left.set_ylabel("error")
