@@ -19,8 +19,9 @@ def transfer(u_source, V_target, extend=False):
     from its closest cell."""
     comm = V_target.mesh.comm
     n = kuhn_grid(u_source.function_space.mesh)
-    if n and inside_unit_box(V_target):
-        return kuhn_transfer(u_source, n, V_target)
+    moved = kuhn_transfer(u_source, n, V_target) if n else None
+    if moved is not None:
+        return moved
     index_map = V_target.dofmap.index_map
     n_owned = index_map.size_local
     points = V_target.tabulate_dof_coordinates()[:n_owned]
@@ -114,16 +115,13 @@ def kuhn_grid(msh):
     return n if msh.comm.allreduce(ok, op=MPI.LAND) else 0
 
 
-def inside_unit_box(V):
-    """Whether every dof point of V (on every rank) lies in [0, 1]^d, the Kuhn grid's domain."""
-    points = V.tabulate_dof_coordinates()[:, :V.mesh.topology.dim]
-    inside = bool(np.all((points > -1e-12) & (points < 1 + 1e-12)))
-    return V.mesh.comm.allreduce(inside, op=MPI.LAND)
-
-
 def kuhn_transfer(u_source, n, V_target):
-    """u_source (P1 on the Kuhn grid with n cells per side) at V_target's dofs, owned and ghost."""
+    """u_source (P1 on the Kuhn grid with n cells per side) at V_target's dofs, owned and ghost; None
+    when a target dof lies outside [0, 1]^d, the grid's domain (on any rank)."""
     comm, tdim = V_target.mesh.comm, V_target.mesh.topology.dim
+    targets = V_target.tabulate_dof_coordinates()[:, :tdim]
+    if not comm.allreduce(bool(np.all((targets > -1e-12) & (targets < 1 + 1e-12))), op=MPI.LAND):
+        return None
     V = u_source.function_space
     owned = V.dofmap.index_map.size_local
     points = np.rint(V.tabulate_dof_coordinates()[:owned, :tdim] * n).astype(np.int64)
@@ -132,7 +130,7 @@ def kuhn_transfer(u_source, n, V_target):
     for where, values in zip(comm.allgather(index), comm.allgather(u_source.x.array[:owned])):
         grid[where] = values
     u_target = fem.Function(V_target)
-    u_target.x.array[:] = kuhn_interpolate(grid, n, V_target.tabulate_dof_coordinates()[:, :tdim])
+    u_target.x.array[:] = kuhn_interpolate(grid, n, targets)
     return u_target
 
 
