@@ -27,6 +27,12 @@ def usable(values, valid):
     return [k for k, (v, ok) in enumerate(zip(values, valid)) if ok and v is not None and v > 0]
 
 
+def error_columns(rows):
+    """The measured norms of a table (rows of dicts): every column X that has a rate column rate_X,
+    in table order (L2, H1, the Γ_C and reference norms)."""
+    return [c for c in (rows[0] if rows else {}) if f"rate_{c}" in rows[0]]
+
+
 def fitted(h, errors, valid, k=3, log_factor=False):
     """Least-squares slope of log e against log h over the last k usable levels (None if fewer than 2).
     With log_factor the fit is of e/|ln h|: the slope that should reach p when e = O(h^p |ln h|)."""

@@ -3,6 +3,8 @@ import csv
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
+
 FORMATS = {"h": ".4e", "epsilon": ".3e", "time_s": ".2f"}
 SHOWN = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its")
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
@@ -36,11 +38,6 @@ class Study:
     rows: list
     config_text: str = ""  # empty when read from rates.csv alone
     attrs: dict = field(default_factory=dict, repr=False)
-
-
-def norms(rows):
-    """The measured norms: every column X that has a rate column rate_X, in table order."""
-    return [c for c in (rows[0] if rows else {}) if f"rate_{c}" in rows[0]]
 
 
 def fitted_slope(h, e, k=FIT_LEVELS):

@@ -54,17 +54,12 @@ def is_timing(column):
             or column.startswith("t_"))
 
 
-def error_columns(rows):
-    """The error columns of a table: each X with a rate_X column (L2, H1, Γ_C and reference norms)."""
-    return [column[len("rate_"):] for column in (rows[0] if rows else {}) if column.startswith("rate_")]
-
-
 def work_precision_rows(rows):
     """Error against cost, one row per (norm, level) with an error: the level's own wall time and the
     cumulative wall time of the study up to it (what an error costs from scratch)."""
     return [{"norm": norm, "level": row["level"], "N": row["N"], "dofs": row["dofs"], "error": row[norm],
              "time_s": row["time_s"], "cumulative_time_s": row["cumulative_time_s"]}
-            for norm in error_columns(rows) for row in rows if row.get(norm) is not None]
+            for norm in rates.error_columns(rows) for row in rows if row.get(norm) is not None]
 
 
 def write(cfg, levels, comm=MPI.COMM_WORLD, status=None):

@@ -5,7 +5,7 @@ import time
 import pytest
 from mpi4py import MPI
 
-from signorini_cli import cli, results, study, timing
+from signorini_cli import cli, rates, results, study, timing
 from conftest import merge
 
 # Errors of small studies before the speed work (split assembly, lagged AMG set-up, CG + AMG above
@@ -72,7 +72,7 @@ def test_work_precision_csv_has_every_norm_and_level(tmp_path, make_config):
     with open(cfg.output_dir / "work_precision.csv") as f:
         work = list(csv.DictReader(f))
     assert list(work[0]) == list(results.WORK_PRECISION_COLUMNS)
-    norms = results.error_columns(table)
+    norms = rates.error_columns(table)
     assert {"L2", "H1", "L2_gc", "energy_err"} <= set(norms)
     assert len(work) == len(norms) * len(table)
     for row in work:
