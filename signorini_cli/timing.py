@@ -56,5 +56,5 @@ def petsc_event_times():
 
 
 def peak_memory_mb(comm):
-    """The largest peak resident set size of any rank so far, in MB (ru_maxrss is in KiB on Linux)."""
+    """The largest peak resident set size of any rank so far, in MiB (ru_maxrss is in KiB on Linux)."""
     return comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, op=MPI.MAX)
