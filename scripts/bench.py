@@ -3,6 +3,7 @@ PETSc's event log are per process), serially and on 2 ranks, and with the three 
 writes bench/results.csv and bench/results.md. Every number in them comes from these runs."""
 import csv
 import datetime
+import json
 import os
 import platform
 import subprocess
@@ -25,7 +26,9 @@ MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
 BENCH_RUNS = (("square", "square", 1, ()), ("square-2-ranks", "square", 2, ()),
               ("square-cold", "square", 1, ("solver.strategy=plain",)),
               ("square-nested", "square", 1, ("solver.strategy=nested",)),
-              ("cube", "cube", 1, ()), ("stiff", "stiff", 1, ()))
+              ("cube", "cube", 1, ()), ("stiff", "stiff", 1, ()),
+              # the memory target: the floor's own KSP and AMG hierarchy would raise the peak
+              ("square-no-floor", "square", 1, ("solver.linear_floor=false",)))
 # the alternatives the defaults were chosen against, on the 2-D study up to N = 512 (MUMPS at N = 1024
 # needs several GiB): MUMPS on every level, a lagged LU (a chord method), Eisenstat-Walker with CG + AMG
 UP_TO_512 = "mesh.refinements=[64, 128, 256, 512]"
@@ -43,9 +46,12 @@ CSV_COLUMNS = (("run", "ranks", "level", "N", "dofs", "newton_its", "linear_its"
                + PHASE_COLUMNS + ("peak_memory_mb", "kb_per_dof", "cpu", "cores"))
 
 
-def main():
+def main(argv=None):
+    """Run the benchmark and write its pages; with --page, write them again from the last runs."""
+    again = "--page" in (sys.argv[1:] if argv is None else argv)
     machine = machine_facts()
-    runs = {name: run(name, config, ranks, overrides) for name, config, ranks, overrides in BENCH_RUNS + CHOICE_RUNS}
+    runs = {name: (read_run if again else run)(name, config, ranks, overrides)
+            for name, config, ranks, overrides in BENCH_RUNS + CHOICE_RUNS}
     (ROOT / "bench").mkdir(exist_ok=True)
     write_csv(ROOT / "bench" / "results.csv", runs, machine)
     (ROOT / "bench" / "results.md").write_text(page(runs, machine))
@@ -71,13 +77,20 @@ def run(name, config, ranks, overrides):
     print(f"== {name}: {' '.join(command[len(MPIRUN) if ranks > 1 else 0:])}", flush=True)
     start = time.perf_counter()
     status = subprocess.run(command, cwd=ROOT, env=dict(os.environ, **MPI_ENV)).returncode
-    wall = time.perf_counter() - start
-    study = next(out.iterdir())
+    (out / "bench.json").write_text(json.dumps({"wall_s": time.perf_counter() - start, "status": status}))
+    return read_run(name, config, ranks, overrides)
+
+
+def read_run(name, config, ranks, overrides):
+    """A finished run's rows (rates.csv as floats), process wall time and exit status."""
+    out = RUNS / name
+    facts = json.loads((out / "bench.json").read_text())
+    study = next(path for path in out.iterdir() if path.is_dir())
     with open(study / "rates.csv") as f:
         rows = [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
     for row in rows:
         row["kb_per_dof"] = row["peak_memory_mb"] * 2**20 / 1000 / row["dofs"]
-    return {"rows": rows, "wall_s": wall, "status": status, "ranks": ranks, "overrides": overrides}
+    return dict(facts, rows=rows, ranks=ranks, overrides=overrides)
 
 
 def _number(text):
@@ -110,7 +123,7 @@ def study_time(rows):
 
 
 def floors(rows):
-    return sum(r["t_linear_floor"] or 0.0 for r in rows)
+    return sum(r.get("t_linear_floor") or 0.0 for r in rows)
 
 
 def targets(runs):
@@ -126,8 +139,8 @@ def targets(runs):
             ("exponent of solve time vs dofs, last 3 levels, 3-D", "cube", exponent(cube), TARGETS["exponent"], "<="),
             ("speed-up on 2 ranks, finest 2-D level (level wall time)", f"square N={square[-1]['N']:.0f}",
              speedup, TARGETS["speedup"], ">="),
-            ("peak memory per dof (kB), finest 2-D level", f"square N={square[-1]['N']:.0f}",
-             square[-1]["kb_per_dof"], TARGETS["kb_per_dof"], "<=")]
+            ("peak memory per dof (kB), finest 2-D level, no floor measured", f"square-no-floor N={square[-1]['N']:.0f}",
+             runs["square-no-floor"]["rows"][-1]["kb_per_dof"], TARGETS["kb_per_dof"], "<=")]
     for name in ("square", "cube", "stiff"):
         rows.append((f"whole study / sum of linear floors ({name})", name,
                      study_time(runs[name]["rows"]) / floors(runs[name]["rows"]), TARGETS["study_over_floors"], "<="))
@@ -159,18 +172,21 @@ def page(runs, machine):
 def limits_note(runs):
     """What limits the figures that miss their targets, from the same runs."""
     square, two = runs["square"]["rows"][-1], runs["square-2-ranks"]["rows"][-1]
-    other = square["time_s"] - square["t_newton"]
+    bare = runs["square-no-floor"]["rows"][-1]
+    rest = square["time_s"] - sum(square[c] for c in ("t_newton", "t_mesh", "t_transfer", "t_errors"))
     notes = ["What the numbers say, finest 2-D level:",
-             f"- the level's wall time is {square['time_s']:.2f} s, of which the Newton solve {square['t_newton']:.2f} s; "
-             f"mesh building {square['t_mesh']:.2f} s, the nested-iteration transfer {square['t_transfer']:.2f} s and "
-             f"the error integrals {square['t_errors']:.2f} s take the other {other:.2f} s.",
+             f"- the level's wall time is {square['time_s']:.2f} s: the Newton solve {square['t_newton']:.2f} s, "
+             f"mesh building {square['t_mesh']:.2f} s, the nested-iteration transfer {square['t_transfer']:.2f} s, "
+             f"the error integrals {square['t_errors']:.2f} s, and {rest:.2f} s for the function space, the "
+             "boundary data, the forms and the per-level report.",
              f"- on 2 ranks the Newton solve goes from {square['t_newton']:.2f} s to {two['t_newton']:.2f} s "
              f"({square['t_newton'] / two['t_newton']:.2f}x) and the level from {square['time_s']:.2f} s to "
              f"{two['time_s']:.2f} s; mesh building goes from {square['t_mesh']:.2f} s to {two['t_mesh']:.2f} s.",
-             f"- peak memory {square['peak_memory_mb']:.0f} MiB for {square['dofs']:.0f} dofs, of which "
-             f"{square['peak_memory_mesh_mb']:.0f} MiB were reached while building the mesh (dolfinx's own "
-             f"construction) and {runs['square']['rows'][0]['peak_memory_mb']:.0f} MiB by the coarsest level "
-             "(the Python interpreter, dolfinx and PETSc)."]
+             f"- peak memory {bare['peak_memory_mb']:.0f} MiB for {bare['dofs']:.0f} dofs without the floor "
+             f"measurement ({square['peak_memory_mb']:.0f} MiB with it: its fresh KSP builds a second AMG "
+             f"hierarchy), of which {bare['peak_memory_mesh_mb']:.0f} MiB were reached while building the mesh "
+             f"(dolfinx's own construction) and {runs['square']['rows'][0]['peak_memory_mb']:.0f} MiB by the "
+             "coarsest level (the Python interpreter, dolfinx and PETSc)."]
     return notes
 
 
