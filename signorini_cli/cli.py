@@ -171,6 +171,7 @@ def setup_logging(level=logging.WARNING):
     root.handlers[:] = [handler]
     root.setLevel(level)
 
+
 def entry():
     """The console script: main(), and for a bug its traceback and exit status 3 (guard.CRASH_STATUS),
     apart from 1 (a level did not converge) and 2 (bad input)."""

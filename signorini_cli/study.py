@@ -102,14 +102,16 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
             fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
     measuring = reference_s + (outcome.floor_s or 0.0)  # the linear floor too: a measurement, not the study's work
     level.time_s = comm.allreduce(time.perf_counter() - start - measuring, op=MPI.MAX)
-    level.timings = dict(timing_columns(outcome, phases, comm), peak_memory_mesh_mb=mesh_peak_mb)
+    level.timings = timing_columns(outcome, phases, comm, mesh_peak_mb)
     return level
 
 
-def timing_columns(outcome, phases, comm):
-    """The level's t_* phase times, its peak memory and, when measured, its linear floor and the
-    ratio of the Newton solve to it (issue 6); t_output grows when results.write records the level."""
-    columns = dict(phases.columns(comm), peak_memory_mb=timing.peak_memory_mb(comm))
+def timing_columns(outcome, phases, comm, mesh_peak_mb):
+    """The level's t_* phase times, its peak memory (at its end and right after its mesh) and, when
+    measured, its linear floor and the ratio of the Newton solve to it (issue 6); t_output grows when
+    results.write records the level."""
+    columns = dict(phases.columns(comm), peak_memory_mb=timing.peak_memory_mb(comm),
+                   peak_memory_mesh_mb=mesh_peak_mb)
     if outcome.floor_s is not None:
         columns.update(t_linear_floor=outcome.floor_s, floor_ratio=columns["t_newton"] / outcome.floor_s)
     return columns
