@@ -75,7 +75,7 @@ LIMIT_CONFIGS := $(sort $(wildcard configs/limit/*.yaml))
 limit: setup
 	@set -e; missed=""; for c in $(LIMIT_CONFIGS); do echo "== $$c"; \
 	  $(SIGNORINI) run $$c --force || { test $$? -eq 1; missed="$$missed $$c"; }; done; \
-	$(PY) -m signorini_cli.limit_docs $(LIMIT_CONFIGS) --out docs/limit.md; \
+	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out docs/limit.md; \
 	if [ -n "$$missed" ]; then echo "levels not converged or expectations not met:$$missed"; exit 1; fi
 
 .PHONY: stiff

@@ -1,6 +1,6 @@
 """docs/limit.md from the runs of configs/limit/ (`make limit`): tables and the model-error plot.
 
-    python -m signorini_cli.limit_docs CONFIG.yaml ... [--output RESULTS] [--out docs/limit.md]
+    python scripts/limit_page.py CONFIG.yaml ... [--output RESULTS] [--out docs/limit.md]
 reads each config's results (study_type signorini, epsilon_sweep, total_error) and writes the page
 and its figure next to it; every number on the page comes from those results."""
 import argparse
@@ -10,13 +10,13 @@ from pathlib import Path
 
 import h5py
 
-from . import config, rates
+from signorini_cli import config, plots, rates
 
 PLOT = "limit-model-error.png"
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m signorini_cli.limit_docs", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="scripts/limit_page.py", description=__doc__.split("\n")[0])
     parser.add_argument("configs", nargs="+", help="the configs/limit studies, already run")
     parser.add_argument("--output", help="the results folder the studies were run with (overrides output.dir)")
     parser.add_argument("--out", default="docs/limit.md", help="the page to write; the plot goes next to it")
@@ -78,7 +78,7 @@ def sweep_section(path, cfg, folder):
     fitted = read_csv(cfg.output_dir / "fitted.csv")
     reference = {r["N"]: r for r in read_csv(cfg.output_dir / "reference.csv")}
     finest = max(r["N"] for r in sweep)
-    plot_model_error([r for r in sweep if r["N"] == finest], folder / PLOT)
+    plots.model_error([r for r in sweep if r["N"] == finest], folder / PLOT)
     for row in fitted:
         row["1/alpha"] = 1.0 / row["alpha"]
     lines = [
@@ -189,38 +189,6 @@ def provenance(studies):
         versions = ", ".join(f"{k[len('version_'):]} {attrs[k]}" for k in sorted(attrs) if k.startswith("version_"))
         lines.append(f"- `{path}` → `{cfg.output_dir}`: MPI size {attrs['mpi_size']}; {versions}")
     return "\n".join(lines)
-
-
-def plot_model_error(rows, path):
-    """The model-error figure of `rows` (one mesh of a sweep) as `path` (its suffix picks the format)."""
-    from . import plots  # matplotlib only when plots are asked for
-    with plots.styled():
-        model_error_figure(rows).savefig(path)
-    return path
-
-
-def model_error_figure(rows):
-    """H1 and L2 model error against ε, one curve per α, log-log, with the slope 1/α over the smaller
-    half of the sweep; a Figure on the Agg canvas (no pyplot)."""
-    from matplotlib.figure import Figure
-    from . import plots
-    fig = Figure(figsize=(2 * plots.WIDTH, plots.HEIGHT))
-    for ax, norm, label in zip(fig.subplots(1, 2), ("H1", "L2"), (r"$|u_{\varepsilon,h}-u_{S,h}|_{H^1}$",
-                                                                  r"$\|u_{\varepsilon,h}-u_{S,h}\|_{L^2}$")):
-        for k, alpha in enumerate(sorted({r["alpha"] for r in rows})):
-            curve = [r for r in rows if r["alpha"] == alpha and r[norm] is not None]
-            eps, err = [r["epsilon"] for r in curve], [r[norm] for r in curve]
-            style = plots.curve_style(k)
-            ax.loglog(eps, err, color=style["color"], marker=style["marker"], label=rf"$\alpha = {alpha:g}$")
-            tail = eps[len(eps) // 2:]  # through the last point
-            ax.loglog(tail, [err[-1] * (e / eps[-1]) ** (1 / alpha) for e in tail], ls=":", lw=2,
-                      color=style["color"], label=rf"slope $1/{alpha:g}$")
-        ax.set_xlabel(r"penalty parameter $\varepsilon$")
-        ax.set_ylabel(label)
-        ax.legend(fontsize=8)
-    fig.suptitle(f"Model error of the compliance model on the fixed mesh N = {rows[0]['N']}", fontsize=9.5)
-    fig.tight_layout()
-    return fig
 
 
 def monotone(rows):
