@@ -2,6 +2,7 @@
 work_precision.csv and study.h5 for refinement and signorini studies; sweep.csv, fitted.csv and
 reference.csv (ε-sweeps) or total.csv and one folder per sub-study (total error) beside their study.h5."""
 import csv
+import datetime
 import functools
 import io
 import json
@@ -265,6 +266,7 @@ def _write_attrs(h5, cfg, mpi_size, status):
     h5.attrs["config_resolved"] = yaml.safe_dump(config.to_dict(cfg), sort_keys=False)
     h5.attrs["study"] = cfg.study
     h5.attrs["mpi_size"] = mpi_size
+    h5.attrs["date"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     if status is not None:
         h5.attrs["status"] = status
     for name, version in versions().items():

@@ -2,6 +2,7 @@
 import yaml
 
 import runpy
+import sys
 from pathlib import Path
 
 from signorini_cli import cli
@@ -18,7 +19,9 @@ STUDIES = {
 }
 
 
-limit_page = runpy.run_path(str(Path(__file__).resolve().parent.parent / "scripts" / "limit_page.py"))
+SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
+sys.path.insert(0, str(SCRIPTS))  # the page generators share scripts/provenance.py
+limit_page = runpy.run_path(str(SCRIPTS / "limit_page.py"))
 
 
 def test_page_from_small_runs(tmp_path):
