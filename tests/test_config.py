@@ -60,7 +60,7 @@ def test_override_applies_before_validation():
     pytest.param({"mesh": {"kind": "disk"}}, "mesh.kind: 'disk' is not one of", id="kind"),
     pytest.param({"contact": "front"}, "contact: 'front' is not one of left, right, bottom, top", id="face-2d"),
     pytest.param({"alpah": 2}, "alpah: unknown key in config \\(did you mean 'alpha'\\?\\)", id="typo"),
-    pytest.param({"epsilon": {"thetta": 1}}, "epsilon.thetta: unknown key in epsilon \\(did you mean 'theta'", id="typo-nested"),
+    pytest.param({"epsilon": {"thetta": 1}}, "epsilon.thetta: unknown key in epsilon \\(did you mean 'epsilon.theta'", id="typo-nested"),
     pytest.param({"study": None}, "study: missing required key", id="missing"),
     pytest.param({"problem": {"exact": "z*x"}}, "problem.exact: unknown name 'z'", id="z-in-2d"),
     pytest.param({"problem": {"exact": "__import__('os')"}}, "problem.exact: unknown function", id="injection"),
@@ -141,7 +141,7 @@ DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
     pytest.param(dict(DATA_ONLY, verification={"reference_epsilon": "each"}),
                  "verification.reference_epsilon: 'each' is not one of per_level, fixed", id="ref-eps"),
     pytest.param({"verification": {"fit_level": 3}}, "verification.fit_level: unknown key in verification "
-                 r"\(did you mean 'fit_levels'\?\)", id="typo"),
+                 r"\(did you mean 'verification.fit_levels'\?\)", id="typo"),
     pytest.param({"expect": {"rates": {"L3": 2}}}, "expect.rates.L3: not a rate column of a manufactured scene",
                  id="expect-norm"),
     pytest.param(dict(DATA_ONLY, expect={"rates": {"L2": 2}}),
@@ -357,7 +357,7 @@ def test_solver_strategy_defaults():
     pytest.param({"inexact": "yes"}, "solver.inexact: must be true or false, got str 'yes'", id="inexact"),
     pytest.param({"continuation": {"factor": 2}}, "solver.continuation.factor: must be < 1", id="factor"),
     pytest.param({"continuation": {"steps": 3}}, "solver.continuation.steps: unknown key in solver.continuation "
-                 "\\(did you mean 'max_steps'", id="continuation-typo"),
+                 "\\(did you mean 'solver.continuation.max_steps'", id="continuation-typo"),
     pytest.param({"condition_max_dofs": -1}, "solver.condition_max_dofs: must be >= 0", id="condition"),
     pytest.param({"stol": -1}, "solver.stol: must be >= 0", id="stol"),
 ])
