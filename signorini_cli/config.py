@@ -81,7 +81,7 @@ class Epsilon:
     """The penalty law eps(h) = theta h^p."""
     law: str = key("theta_h", "theta_h: θh | theta_sqrt_h: θ√h | constant: θ | power: θ h^exponent")
     theta: float = key(1.0, "> 0")
-    exponent: float = key(1.0, "p of law: power", only="law: power")
+    exponent: float = key(1.0, "p of law: power", only="only with law: power")
 
     @classmethod
     def power(cls, theta, p):
@@ -112,14 +112,14 @@ class Mesh:
     kind: str = key("unit_square", "unit_square | unit_cube | gmsh | file")
     refinements: tuple = key((8, 16, 32, 64), "unit_square/cube: cells per side, one level each, increasing; "
                                               "gmsh/file with refine: uniform: refinements of the base mesh")
-    diagonal: str = key("right", "right | left | crossed (unit_square only)", only="kind: unit_square")
+    diagonal: str = key("right", "right | left | crossed (kind: unit_square only)")
     geometry: str = key("", "a shipped geometry (meshes/<name>.geo) or a .geo file", example="half_disk",
-                        only="kind: gmsh")
-    sizes: tuple = key((), "target cell size per level, decreasing", example=(0.2, 0.1), only="kind: gmsh")
+                        only="only with kind: gmsh")
+    sizes: tuple = key((), "target cell size per level, decreasing", example=(0.2, 0.1), only="only with kind: gmsh")
     path: tuple = key((), ".msh files, one per level (the base mesh with refine: uniform)",
-                      example=("mesh.msh",), only="kind: file")
-    refine: str = key("none", "none | uniform: levels refine one base mesh (nested)", only="kind: gmsh or file")
-    cache: str = key(geometry_files.CACHE_DIR, "where gmsh meshes are kept", only="kind: gmsh")
+                      example=("mesh.msh",), only="only with kind: file")
+    refine: str = key("none", "none | uniform: levels refine one base mesh (nested)", only="only with kind: gmsh or file")
+    cache: str = key(geometry_files.CACHE_DIR, "where gmsh meshes are kept", only="only with kind: gmsh")
     groups: tuple = key((), internal=True)        # gmsh/file: (name, dimension) of the source's physical groups
     source_hash: str = key("", internal=True)     # gmsh/file: of the .geo/.msh contents (the config hash)
 
@@ -146,9 +146,9 @@ class Problem:
     exact: expressions.Expression = key(None, "manufactured solution in x, y (z), eps",
                                         example="sin(2*pi*x)*(1-y)**2")
     f: expressions.Expression = key(None, "data only (no exact solution): the load", example="-10",
-                                    only="no exact")
+                                    only="only without exact")
     g: expressions.Expression = key(None, "data only: the contact data (default 0)", example="0",
-                                    only="no exact")
+                                    only="only without exact")
     exact_solves: str = key("compliance", "compliance | signorini: exact is a Signorini solution u_S, g = 0 "
                                           "(docs/limit.md)")
 
@@ -158,7 +158,7 @@ class PositivePart:
     """[u]_+ exactly, or smoothed as (u + sqrt(u^2 + delta^2))/2 with delta an expression in h, eps."""
     kind: str = key("exact", "exact | smooth")
     delta: expressions.Expression = key(None, "δ(h, eps) > 0 (docs/stability.md)", example=DEFAULT_DELTA,
-                                        only="kind: smooth")
+                                        only="only with kind: smooth")
 
 
 @dataclass(frozen=True)
@@ -177,7 +177,7 @@ class Solver:
     linear: str = key("auto", "auto | direct | iterative")
     line_search: str = key("bt", "bt | basic | l2 | cp (method: newtonls)")
     on_failure: str = key("continue", "continue | stop, after a level that did not converge")
-    petsc_options: tuple = key((), "extra PETSc options (no leading -) under the study's prefix")  # (name, value)
+    petsc_options: tuple = key((), example={}, doc="extra PETSc options (no leading -) under the study's prefix")  # (name, value)
     strategy: str = key("auto", "plain | nested | continuation | auto")
     method: str = key("newtonls", "newtonls (line search) | newtontr (trust region)")
     stol: float = key(1e-7, "success: Newton correction <= stol * ||u_h||; 0: off")
@@ -195,11 +195,10 @@ class Verification:
     """Rate fits, verdict tolerance, extra measures, and the reference solution of data-only scenes."""
     fit_levels: int = key(3, "least-squares slope over the last k converged levels (>= 2)")
     tolerance: float = key(0.1, "verdict: agrees when observed >= proven - tolerance")
-    measures: tuple = key(None, "default: every measure the scene can have", example=MEASURES[:5],
-                          only="a subset")
+    measures: tuple = key(None, f"a list of {', '.join(MEASURES)}; null: every measure the scene can have")
     reference_refinements: int = key(1, "reference N = finest N * 2^k, k in 0 (none), 1, 2",
-                                     only="no problem.exact")
-    reference_epsilon: str = key("per_level", "per_level | fixed", only="no problem.exact")
+                                     only="only without problem.exact")
+    reference_epsilon: str = key("per_level", "per_level | fixed", only="only without problem.exact")
     regular: bool = key(True, "false: u is not in W^{2,alpha+1}: every verdict is 'not covered'")
 
 
@@ -215,9 +214,9 @@ class Limit:
     """The ε → 0 studies (docs/limit.md): the α values, the ε of a sweep, the ε = θ h^p of a total-error study."""
     alpha: tuple = key((2.0,), "the α values")
     epsilon: tuple = key((), "epsilon_sweep: decreasing ε values, or {start, stop, count}",
-                         example=(1.0, 0.1, 0.01), only="study_type: epsilon_sweep")
-    theta: float = key(1.0, "total_error: ε = θ h^p", only="study_type: total_error")
-    exponent: tuple = key((), "total_error: the p values", example=(1.0, 2.0), only="study_type: total_error")
+                         example=(1.0, 0.1, 0.01), only="only with study_type: epsilon_sweep")
+    theta: float = key(1.0, "total_error: ε = θ h^p", only="only with study_type: total_error")
+    exponent: tuple = key((), "total_error: the p values", example=(1.0, 2.0), only="only with study_type: total_error")
     fit_last: int = key(3, "the fitted rate uses this many finest points")
 
 
@@ -246,9 +245,9 @@ class Config:
     solver: Solver = key(Solver(), "Newton and linear solves (README, \"Robust solves\")")
     output: Output = key(Output(), "where and what is written")
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
-    expect: Expect = key(None, "rates to require: exit status 1 when missed", only="required rates")
+    expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
     study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error")
-    limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)", only="study_type: epsilon_sweep or total_error")
+    limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)", only="only with study_type: epsilon_sweep or total_error")
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
 
     @property
@@ -290,16 +289,17 @@ def key_paths(cls=Config, prefix=""):
 MAX_BYTES = 1 << 20  # a config is a page of YAML: 1 MiB is far beyond any real one
 
 
-def load(path, overrides=()):
-    """Read a YAML config file (a regular file of at most MAX_BYTES), apply `KEY=VALUE` overrides,
-    validate. Relative mesh paths in the file are relative to the file's folder."""
+def load(path, overrides=(), options=()):
+    """Read a YAML config file (a regular file of at most MAX_BYTES), apply `KEY=VALUE` overrides and
+    the (name, value) PETSc `options` of the command line, validate. Relative mesh paths in the file
+    are relative to the file's folder."""
     data = read_bounded(path)
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as err:
         line = data.count(b"\n", 0, err.start) + 1
         raise ConfigError("", f"not a UTF-8 text file (byte 0x{data[err.start]:02x} on line {line})") from None
-    return loads(text, overrides, folder=Path(path).resolve().parent)
+    return loads(text, overrides, folder=Path(path).resolve().parent, options=options)
 
 
 def read_bounded(path):
@@ -324,9 +324,10 @@ def read_bounded(path):
     return data
 
 
-def loads(text, overrides=(), folder=None):
-    """Validate YAML text (after overrides) into a Config; relative mesh paths of the text resolve
-    against `folder` (the config file's), those of overrides against the working directory."""
+def loads(text, overrides=(), folder=None, options=()):
+    """Validate YAML text (after overrides, then PETSc `options` joining solver.petsc_options, as
+    strings) into a Config; relative mesh paths of the text resolve against `folder` (the config
+    file's), those of overrides against the working directory."""
     raw = yaml_load(text)
     if not isinstance(raw, dict):
         raise ConfigError("", "the config must be a YAML mapping of keys to values")
@@ -334,6 +335,8 @@ def loads(text, overrides=(), folder=None):
         _resolve_mesh_paths(raw, folder)
     for item in overrides:
         apply_override(raw, item)
+    for name, value in options:
+        set_path(raw, f"solver.petsc_options.{name}", value)
     return dataclasses.replace(from_dict(raw), text=text)
 
 
@@ -902,6 +905,40 @@ def _expression(text, path, variables):
         return expressions.parse(text, variables)
     except expressions.ExpressionError as err:
         raise ConfigError(path, str(err)) from None
+
+
+# --- the template (`signorini init`) ---------------------------------------------------------------
+
+def template():
+    """A commented config with every key and its default, generated from the dataclasses (so it lists
+    exactly what the loader reads). Valid as it stands; a commented key applies only where it says."""
+    head = [f"# signorini config: every key with its default (described in {DOCS}).",
+            "# Required keys show an example; commented keys apply only where their comment says."]
+    return "\n".join(head + _template_lines(Config, 0, False)) + "\n"
+
+
+def _template_lines(cls, depth, commented):
+    lines = []
+    for name in keys_of(cls):
+        f = _fields(cls)[name]
+        doc, example, only = f.metadata["doc"], f.metadata["example"], f.metadata["only"]
+        off = commented or bool(only)
+        lead = ("# " if off else "") + "  " * depth  # a commented block uncomments as a whole
+        comment = f"  # {doc}" + (f"; {only}" if only else "")
+        if f.type in SECTIONS:
+            lines.append(f"{lead}{name}:".ljust(40) + comment)
+            lines += _template_lines(f.type, depth + 1, off)
+            continue
+        value = _flow(example if example is not None else f.default)
+        lines.append(f"{lead}{name}: {value}".ljust(40) + comment)
+    return lines
+
+
+def _flow(value):
+    """value as one line of YAML."""
+    value = list(value) if isinstance(value, tuple) else value
+    text = yaml.safe_dump(value, default_flow_style=True, width=1000, allow_unicode=True, sort_keys=False)
+    return text.removesuffix("\n").removesuffix("\n...").strip()
 
 
 # --- resolved settings ----------------------------------------------------------------------------
