@@ -114,8 +114,8 @@ def main(argv=None):
     if argv[:1] in (["run"], ["check"]):
         try:
             argv, options = split_petsc_options(argv)
-        except ConfigError as err:
-            return _fail("command line", err)
+        except ConfigError as err:  # named after the config, as every bad input of run and check is
+            return _fail(next((t for t in argv[1:] if not t.startswith("-")), "command line"), err)
     args = build_parser().parse_args(argv)
     args.petsc_options = options
     setup_logging()

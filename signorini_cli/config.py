@@ -256,7 +256,7 @@ class Config:
 
 
 SECTIONS = (Config, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification, Expect, Limit)
-REQUIRED = ("study", "mesh", "contact", "problem")  # top-level keys without a default
+REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 
 def default(cls, name):
@@ -326,32 +326,15 @@ def read_bounded(path):
 
 def loads(text, overrides=(), folder=None, options=()):
     """Validate YAML text (after overrides, then PETSc `options` joining solver.petsc_options, as
-    strings) into a Config; relative mesh paths of the text resolve against `folder` (the config
-    file's), those of overrides against the working directory."""
+    strings) into a Config; relative mesh paths resolve against `folder` (the config file's)."""
     raw = yaml_load(text)
     if not isinstance(raw, dict):
         raise ConfigError("", "the config must be a YAML mapping of keys to values")
-    if folder is not None:
-        _resolve_mesh_paths(raw, folder)
     for item in overrides:
         apply_override(raw, item)
     for name, value in options:
         set_path(raw, f"solver.petsc_options.{name}", value)
-    return dataclasses.replace(from_dict(raw), text=text)
-
-
-def _resolve_mesh_paths(raw, folder):
-    """mesh.geometry (a .geo path), mesh.path and mesh.cache relative to `folder`, in place."""
-    mesh = raw.get("mesh")
-    if not isinstance(mesh, dict):
-        return
-    resolve = (lambda name: str(folder / name) if isinstance(name, str) and name and
-               not Path(name).is_absolute() else name)
-    if isinstance(mesh.get("geometry"), str) and mesh["geometry"].endswith(".geo"):
-        mesh["geometry"] = resolve(mesh["geometry"])
-    for name in ("path", "cache"):
-        if name in mesh:
-            mesh[name] = [resolve(p) for p in mesh[name]] if isinstance(mesh[name], list) else resolve(mesh[name])
+    return dataclasses.replace(from_dict(raw, folder), text=text)
 
 
 def apply_override(raw, item):
@@ -413,14 +396,15 @@ class _Section:
         return self.raw.get(name, {})
 
 
-def from_dict(raw):
-    """Validate a raw mapping into a Config."""
+def from_dict(raw, folder=None):
+    """Validate a raw mapping into a Config; relative mesh paths are relative to `folder` (None: the
+    working directory), and stored resolved."""
     _keys(raw, "", required=REQUIRED, optional=keys_of(Config))
     top = _Section(raw, "", Config)
     study = top.string("study")
     if "/" in study or study in (".", ".."):
         raise ConfigError("study", f"must be a plain folder name, got {study!r}")
-    mesh = _mesh(raw["mesh"], "mesh")
+    mesh = _mesh(raw["mesh"], "mesh", Path(folder or "."))
     dim = _integer(raw.get("dimension", mesh.dimension), "dimension")
     if dim not in (2, 3):
         raise ConfigError("dimension", f"must be 2 or 3, got {dim}")
@@ -471,9 +455,9 @@ def _epsilon(raw, path):
     return Epsilon(law, s.number("theta", positive=True), s.number("exponent"))
 
 
-def _mesh(raw, path):
+def _mesh(raw, path, folder):
     if isinstance(raw, dict) and raw.get("kind") in GEOMETRY_KINDS:
-        return _geometry_mesh(raw, path)
+        return _geometry_mesh(raw, path, folder)
     _keys(raw, path, required=("kind", "refinements"), optional=("diagonal",))
     s = _Section(raw, path, Mesh)
     kind = s.choice("kind", tuple(MESH_KINDS) + GEOMETRY_KINDS)
@@ -489,7 +473,7 @@ def _mesh(raw, path):
     return Mesh(kind, levels, s.choice("diagonal", DIAGONALS))
 
 
-def _geometry_mesh(raw, path):
+def _geometry_mesh(raw, path, folder):
     """mesh: {kind: gmsh, geometry, sizes} or {kind: file, path}, optionally refine: uniform + refinements."""
     kind = raw["kind"]
     source, listed = ("geometry", "sizes") if kind == "gmsh" else ("path", "path")
@@ -497,11 +481,12 @@ def _geometry_mesh(raw, path):
     s = _Section(raw, path, Mesh)
     refine = s.choice("refine", REFINE)
     if kind == "gmsh":
-        geometry = s.string("geometry")
-        sources = (_geometry_file(geometry, s.at("geometry")),)
+        given = s.string("geometry")
+        geometry = _resolve(given, folder) if given.endswith(".geo") else given  # else a shipped name
+        sources = (_geometry_file(geometry, s.at("geometry"), given),)
         entries = _sizes(raw["sizes"], s.at("sizes"))
     else:
-        entries = _msh_files(raw["path"], s.at("path"))
+        entries = _msh_files(raw["path"], s.at("path"), folder)
         sources, geometry = entries, ""
     if refine == "uniform":
         if len(entries) != 1:
@@ -512,27 +497,33 @@ def _geometry_mesh(raw, path):
     else:
         refinements = ()
     return Mesh(kind, refinements, geometry=geometry, sizes=entries if kind == "gmsh" else (),
-                path=entries if kind == "file" else (), refine=refine, cache=s.string("cache"),
+                path=entries if kind == "file" else (), refine=refine, cache=_resolve(s.string("cache"), folder),
                 groups=_groups(sources, s.at(source)), source_hash=geometry_files.source_hash(sources))
 
 
-def _geometry_file(name, path):
+def _resolve(name, folder):
+    """A path relative to `folder` (the config file's), normalised; absolute paths stay."""
+    return os.path.normpath(folder / name)
+
+
+def _geometry_file(name, path, given):
     geo = geometry_files.geometry_path(name)
     if not geo.is_file():
         shipped = ", ".join(geometry_files.shipped_geometries())
-        raise ConfigError(path, f"{name!r} is neither a shipped geometry ({shipped}) nor an existing .geo file")
+        raise ConfigError(path, f"{given!r} is neither a shipped geometry ({shipped}) nor an existing .geo file")
     return geo
 
 
-def _msh_files(raw, path):
+def _msh_files(raw, path, folder):
     files = [raw] if isinstance(raw, str) else raw
     if not isinstance(files, list) or not files:
         raise ConfigError(path, f"must be a .msh file or a non-empty list of them, got {_show(raw)}")
     for i, name in enumerate(files):
         where = path if isinstance(raw, str) else f"{path}[{i}]"
-        if not isinstance(name, str) or not Path(name).is_file():
-            raise ConfigError(where, f"no such mesh file: {name!r}")
-    return tuple(files)
+        if not isinstance(name, str) or not Path(folder / name).is_file():
+            relative = " (relative to the config's folder)" if isinstance(name, str) and folder != Path(".") else ""
+            raise ConfigError(where, f"no such mesh file: {name!r}{relative}")
+    return tuple(_resolve(name, folder) for name in files)
 
 
 def _sizes(raw, path):
@@ -838,16 +829,16 @@ def _keys(raw, path, required=(), optional=()):
 
 
 def suggest(name, path, allowed):
-    """The full dotted path of the key `name` probably means: a close key of its own section, else a
-    key of that name (or a close one) in another section (a top-level `exact` is `problem.exact`)."""
-    close = difflib.get_close_matches(name, allowed, n=1)
-    if close:
-        return _join(path, close[0])
+    """The full dotted path of the key `name` probably means: a key of that name in another section (a
+    top-level `exact` is `problem.exact`), else a close key of its own section, else of another."""
     elsewhere = [p for p in key_paths() if p.rsplit(".", 1)[-1] == name]
     if elsewhere:
         return elsewhere[0]
+    close = difflib.get_close_matches(name, allowed, n=1)
+    if close:
+        return _join(path, close[0])
     by_name = {p.rsplit(".", 1)[-1]: p for p in reversed(key_paths())}  # the shallowest path per name
-    close = difflib.get_close_matches(name, list(by_name), n=1)
+    close = difflib.get_close_matches(name, list(by_name), n=1, cutoff=0.8)  # stricter: a guess afar
     return by_name[close[0]] if close else None
 
 
@@ -997,11 +988,8 @@ _Loader.add_implicit_resolver(
 def yaml_load(text):
     """YAML text -> Python data (safe: plain data only). Bad characters and excessive nesting are
     reported as YAML errors with a line and column, never as Python exceptions."""
-    loader = _Loader(text)
     try:
-        node = loader.get_single_node()
-        _check_size(node)
-        return loader.construct_document(node) if node is not None else None
+        return _compose_checked(text)
     except yaml.reader.ReaderError as err:
         line = text.count("\n", 0, err.position)
         column = err.position - (text.rfind("\n", 0, err.position) + 1)
@@ -1011,6 +999,15 @@ def yaml_load(text):
                                    problem_mark=mark) from None
     except RecursionError:
         raise ConfigError("", "YAML nested too deeply") from None
+
+
+def _compose_checked(text):
+    """Compose the YAML, check its expanded size, then build the Python data."""
+    loader = _Loader(text)
+    try:
+        node = loader.get_single_node()
+        _check_size(node)
+        return loader.construct_document(node) if node is not None else None
     finally:
         loader.dispose()
 

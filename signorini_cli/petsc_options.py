@@ -22,7 +22,11 @@ REAL = ("snes_divergence_tolerance", "snes_tr_delta0", "snes_linesearch_damping"
         "pc_hypre_boomeramg_strong_threshold", "pc_hypre_boomeramg_truncfactor", "pc_gamg_threshold",
         "mat_mumps_cntl_\\d+")
 FLAG = ("snes_ksp_ew", "snes_mf", "snes_mf_operator", "snes_fd", "ksp_error_if_not_converged")
-# (monitors and views take no value or a viewer such as ascii:file.txt: not checked here)
+# monitors and views: no value, or a viewer "type[:file[:format]]" (PetscOptionsGetViewer; another value
+# is a PETSc error inside the solve)
+VIEWER = (r"\w+_monitor(_\w+)?", r"\w+_view(_\w+)?", r"\w+_converged_reason")
+VIEWER_TYPES = ("ascii", "binary", "draw", "socket", "vtk", "hdf5", "matlab", "saws", "glvis", "adios",
+                "exodusii", "vu", "mathematica")
 BOOLEANS = ("", "1", "0", "true", "false", "yes", "no", "on", "off")
 NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
@@ -59,10 +63,13 @@ def _check_type(name, text):
         raise OptionError(name, f"must be a finite number, got {text!r}")
     if kind == "flag" and text.strip().lower() not in BOOLEANS:
         raise OptionError(name, f"takes no value or true/false, got {text!r}")
+    if kind == "viewer" and text and text.split(":")[0] not in VIEWER_TYPES:
+        raise OptionError(name, f"takes no value or a viewer ({', '.join(VIEWER_TYPES[:3])}, ...[:file]), "
+                                f"got {text!r}")
 
 
 def _kind(name):
-    for kind, names in (("integer", INTEGER), ("real", REAL), ("flag", FLAG)):
+    for kind, names in (("integer", INTEGER), ("real", REAL), ("flag", FLAG), ("viewer", VIEWER)):
         if any(re.fullmatch(pattern, name) for pattern in names):
             return kind
     return None
