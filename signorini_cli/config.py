@@ -417,7 +417,7 @@ def from_dict(raw, folder=None):
     base = Config(study=study, dimension=dim, alpha=alpha, epsilon=epsilon,
                   mesh=mesh, contact=_contact(raw["contact"], mesh, dim),
                   problem=_problem(raw.get("problem"), "problem", dim),
-                  positive_part=_positive_part(raw.get("positive_part", "exact"), "positive_part", epsilon),
+                  positive_part=_positive_part(top.section("positive_part"), "positive_part", epsilon),
                   contact_quadrature=_contact_quadrature(top.get("contact_quadrature"), "contact_quadrature"),
                   solver=_solver(top.section("solver"), "solver"),
                   output=_output(top.section("output"), "output"),
