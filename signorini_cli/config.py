@@ -28,7 +28,7 @@ LINEAR_SOLVERS = ("auto", "direct", "iterative")  # auto: direct in 2-D, iterati
 LINE_SEARCHES = ("bt", "basic", "l2", "cp")
 ON_FAILURE = ("continue", "stop")
 STRATEGIES = ("plain", "nested", "continuation", "auto")
-METHODS = petsc.METHODS  # PETSc SNES types: line-search Newton, trust-region Newton
+METHODS = ("newtonls", "newtontr")  # PETSc SNES types: line-search Newton, trust-region Newton
 PRECONDITIONERS = ("boomeramg", "gamg")  # algebraic multigrid for linear: iterative
 CONTACT_QUADRATURES = ("exact", "vertex")  # or an integer >= 1: a Gauss rule of that degree (SPEC)
 TABLE_COLUMNS = ("paper", "all")  # or a list of column names (report)
