@@ -405,11 +405,7 @@ def from_dict(raw, folder=None):
     if "/" in study or study in (".", ".."):
         raise ConfigError("study", f"must be a plain folder name, got {study!r}")
     mesh = _mesh(raw["mesh"], "mesh", Path(folder or "."))
-    dim = _integer(raw.get("dimension", mesh.dimension), "dimension")
-    if dim not in (2, 3):
-        raise ConfigError("dimension", f"must be 2 or 3, got {dim}")
-    if mesh.dimension != dim:
-        raise ConfigError("mesh.kind", f"{mesh.kind} is {mesh.dimension}-D but dimension is {dim}")
+    dim = _dimension(raw.get("dimension", mesh.dimension), mesh)
     alpha = top.number("alpha", low=1.0)
     if dim == 3 and alpha > MAX_ALPHA_3D:
         raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g}")
@@ -425,6 +421,16 @@ def from_dict(raw, folder=None):
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=top.string("description", empty=True))
     return _study_type(_check_geometry_mesh(base, raw), raw)
+
+
+def _dimension(value, mesh):
+    """2 or 3, the mesh's (the key defaults to it)."""
+    dim = _integer(value, "dimension")
+    if dim not in (2, 3):
+        raise ConfigError("dimension", f"must be 2 or 3, got {dim}")
+    if mesh.dimension != dim:
+        raise ConfigError("mesh.kind", f"{mesh.kind} is {mesh.dimension}-D but dimension is {dim}")
+    return dim
 
 
 def _check_geometry_mesh(cfg, raw):
