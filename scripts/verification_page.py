@@ -69,7 +69,7 @@ def overview(cases):
         cfg, by_norm = case["cfg"], norms_of(case)
         suffix = "_ref" if cfg.problem.exact is None else ""
         cells = [short(by_norm.get(norm + suffix)) for norm in OVERVIEW_NORMS]
-        lines.append(f"| [{cfg.study}](#{cfg.study}) | {cfg.dimension} | {cfg.alpha:g} | {law(cfg)} | "
+        lines.append(f"| [{cfg.study}](#{cfg.study}) | {cfg.dimension} | {cfg.alpha:g} | {cfg.epsilon.formula()} | "
                      f"{levels_text(case)} | " + " | ".join(cells) + " |")
     lines += ["", "Each cell: observed rate / proven rate, verdict (nc = not covered by the paper).", ""]
     return lines
@@ -109,7 +109,7 @@ def base(norm):
 def case_section(case):
     cfg = case["cfg"]
     lines = [f"## {cfg.study}", "", f"{cfg.description}. Config: `{case['path']}`; d = {cfg.dimension}, "
-             f"α = {cfg.alpha:g}, ε = {law(cfg)}, Γ_C = {cfg.contact} face.", ""]
+             f"α = {cfg.alpha:g}, ε = {cfg.epsilon.formula()}, Γ_C = {cfg.contact} face.", ""]
     if not case["levels"]:
         return lines + ["(no results: the study has not been run)", ""]
     lines += ["| level | N | h | dofs | ε | converged | Newton its |", "|---|---|---|---|---|---|---|"]
@@ -181,13 +181,6 @@ def short(row):
         return "-"
     verdict = {"not covered": "nc"}.get(row["verdict"], row["verdict"])
     return f"{rate(number(row['observed_rate']))} / {fraction(number(row['proven_rate']))}, {verdict}"
-
-
-def law(cfg):
-    eps = cfg.epsilon
-    theta = "" if eps.theta == 1 else f"{eps.theta:g}"
-    return {"theta_h": f"{theta}h", "theta_sqrt_h": f"{theta}√h", "constant": f"{eps.theta:g}",
-            "power": f"{theta}h^{eps.exponent:g}"}[eps.law]
 
 
 def levels_text(case):

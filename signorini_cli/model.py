@@ -47,7 +47,15 @@ def exact_solution(cfg, msh, eps):
     """u_ex as UFL in the mesh's spatial coordinates, or None."""
     if cfg.problem.exact is None:
         return None
-    return cfg.problem.exact(_variables(msh, eps), expressions.ufl_functions())
+    return on_mesh(cfg.problem.exact(_variables(msh, eps), expressions.ufl_functions()), msh)
+
+
+def on_mesh(value, msh):
+    """value as a UFL expression on msh: a constant ("5", "0*x", or f = -Δu of one) has no domain in
+    UFL, which then can neither differentiate it nor build a form from it: make it a dolfinx Constant."""
+    if ufl.domain.extract_domains(ufl.as_ufl(value)):
+        return value
+    return fem.Constant(msh, float(value))
 
 
 def data(cfg, msh, eps, u_exact, n):
@@ -74,7 +82,7 @@ def forms(cfg, domain, u_h, eps):
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags, metadata=metadata)(CONTACT)
     u_exact = exact_solution(cfg, msh, eps)
     f, g = data(cfg, msh, eps, u_exact, ufl.FacetNormal(msh))
-    h = fem.Constant(msh, domain.h)
+    f, h = on_mesh(f, msh), fem.Constant(msh, domain.h)
     q = compliance(u_h, cfg.alpha, cfg.positive_part, h, eps)
     # P1 gradients are constant on (affine) cells: the stiffness is exact with UFL's own degree (0)
     stiffness = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * ufl.dx(domain=msh)

@@ -265,10 +265,8 @@ def title(study, cfg=None):
         return study.name
     if cfg.study_type == "signorini":  # the variational inequality: no alpha, no eps (docs/limit.md)
         return rf"{study.name}: $d = {cfg.dimension}$, Signorini variational inequality ($\varepsilon = 0$)"
-    law = {"theta_h": r"\theta h", "theta_sqrt_h": r"\theta\sqrt{h}", "constant": r"\theta",
-           "power": rf"\theta h^{{{cfg.epsilon.exponent:g}}}"}[cfg.epsilon.law]
     return (rf"{study.name}: $d = {cfg.dimension}$, $\alpha = {cfg.alpha:g}$, "
-            rf"$\varepsilon = {law}$, $\theta = {cfg.epsilon.theta:g}$")
+            rf"$\varepsilon = {cfg.epsilon.tex()}$, $\theta = {cfg.epsilon.theta:g}$")
 
 
 # --- the ε → 0 studies (docs/limit.md): their tables in the terminal, sub-study reports, the figure ----

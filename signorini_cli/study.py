@@ -256,7 +256,7 @@ def sub_studies(cfg):
     for alpha in cfg.limit.alpha:
         for p in cfg.limit.exponent:
             name = f"alpha{alpha:g}-p{p:g}"
-            epsilon = config.Epsilon("power", cfg.limit.theta, p)
+            epsilon = config.Epsilon.power(cfg.limit.theta, p)
             subs.append((name, _sub_study(cfg, name, "refinement", alpha=alpha, epsilon=epsilon)))
     subs.append(("signorini", _sub_study(cfg, "signorini", "signorini")))
     return subs

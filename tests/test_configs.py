@@ -27,7 +27,7 @@ def test_config_header_cites_the_proven_rates(path):
             or cfg.positive_part.kind != "exact"):  # the paper says nothing of a smoothed positive part
         return
     header = " ".join(line for line in path.read_text().splitlines() if line.startswith("#"))
-    p = rates.law_exponent(cfg.epsilon)
+    p = cfg.epsilon.p
     for norm in ("H1", "L2"):
         found = rates.expected(cfg.dimension, cfg.alpha, p, norm)
         if found.rate is not None:
