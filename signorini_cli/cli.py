@@ -5,10 +5,15 @@ import dataclasses
 import logging
 import sys
 
-import yaml
+try:  # Ctrl-C while the modules load (MPI starts here too): one line, no traceback
+    import yaml
+    from mpi4py import MPI
 
-from . import guard
-from .config import ConfigError
+    from . import guard
+    from .config import ConfigError
+except KeyboardInterrupt:
+    print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
+    sys.exit(130)
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
@@ -67,18 +72,23 @@ def main(argv=None):
 def _run_command(args):
     try:
         cfg = _load(args)
-        _check_output(cfg, args.force or args.resume)
-        done = _prepare(cfg, args)
+        lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD)  # writable, and no other run writes it
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return _fail(args.config, err)
-    return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+    with lock:
+        try:
+            _check_output(cfg, args.force or args.resume)
+            done = _prepare(cfg, args)
+        except (ConfigError, yaml.YAMLError, OSError) as err:
+            return _fail(args.config, err)
+        return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
 
 
 def run(cfg, quiet=False, verbose=False, done=()):
     """Run the study (after the levels `done`), writing results and status after each level, with
-    progress, the table, tables and plots on rank 0."""
-    from mpi4py import MPI
+    progress, the table, tables and plots on rank 0; status.txt says complete once the plots are written."""
     from . import progress, report, results, study, verdict
+    guard.raise_on_closed_pipes()  # after PETSc's initialisation (study imports it), which traps SIGPIPE
     comm = MPI.COMM_WORLD
     run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
     if cfg.study_type in ("epsilon_sweep", "total_error"):  # own tables (docs/limit.md)
@@ -87,7 +97,8 @@ def run(cfg, quiet=False, verbose=False, done=()):
     shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet)
     shown.level = len(done)  # a resumed study starts further on
     if done and comm.rank == 0 and not quiet:
-        print(f"study {cfg.study}: resuming after level {done[-1].index}")
+        with guard.stdout_may_close():
+            print(f"study {cfg.study}: resuming after level {done[-1].index}")
 
     def on_level(levels):
         shown.level_done(watch.level_done(levels))
@@ -95,12 +106,12 @@ def run(cfg, quiet=False, verbose=False, done=()):
     with guard.Watch(cfg, done, comm) as watch:
         levels = study.run_study(run_cfg, on_level=on_level, comm=comm,
                                  monitor=None if verbose or quiet else shown.monitor, done=done)
-    rows = results.table(levels)
+        rows = results.table(levels)
+        written = watch.finish(lambda: report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg,
+                                                    cfg.output.digits, plots=cfg.output.plots))
     summary = verdict.summarize(cfg, levels)
-    if comm.rank == 0:
-        written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
-                               plots=cfg.output.plots)
-        if not quiet:
+    if comm.rank == 0 and not quiet:
+        with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
             print(f"study {cfg.study}: {cfg.output_dir}")
             print(report.format_table(rows))
             print(verdict.format_summary(summary))
@@ -125,7 +136,6 @@ def _load(args):
 
 def _prepare(cfg, args):
     """The finished levels to continue from (--resume), once the finest level fits in memory."""
-    from mpi4py import MPI
     from . import resources, resume
     if not args.force:
         resources.check_memory(cfg, MPI.COMM_WORLD)
@@ -144,7 +154,6 @@ def _check_output(cfg, force):
 
 
 def _fail(source, err):
-    from mpi4py import MPI
     if MPI.COMM_WORLD.rank == 0:
         message = _yaml_message(err) if isinstance(err, yaml.YAMLError) else str(err)
         message = " ".join(message.split("\n"))  # one line, always
@@ -177,6 +186,9 @@ def entry():
     apart from 1 (a level did not converge) and 2 (bad input)."""
     try:
         return main()
+    except KeyboardInterrupt:  # before the handlers of guard.supervise are in place (MPI starting)
+        print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
+        return 128 + 2
     except Exception:  # main() lets a bug's exception through, with its traceback, for tests and callers
         import traceback
         traceback.print_exc()

@@ -248,8 +248,10 @@ def from_dict(raw):
                     "output", "description", "verification", "expect",
                     "study_type", "limit"))
     study = _string(raw["study"], "study")
-    if "/" in study or study in (".", ".."):
+    if "/" in study or study in (".", "..") or not study.isprintable():  # no newline, NUL, tab ...
         raise ConfigError("study", f"must be a plain folder name, got {study!r}")
+    if len(study.encode()) > 255:  # NAME_MAX of Linux file systems
+        raise ConfigError("study", f"must be at most 255 bytes (a folder name), got {len(study.encode())}")
     mesh = _mesh(raw["mesh"], "mesh")
     dim = _integer(raw.get("dimension", mesh.dimension), "dimension")
     if dim not in (2, 3):

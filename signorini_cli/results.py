@@ -75,18 +75,24 @@ def write(cfg, levels, comm=MPI.COMM_WORLD, status=None):
 
 def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
     """The writing of `write` by this rank alone, no collective: the fault path calls it on the rank
-    that failed. Each file is replaced atomically; status.txt last."""
+    that failed. Every file is written aside first, then all are renamed (status.txt last): a failure
+    such as a full disk replaces none of them, so rates.csv and study.h5 always hold the same levels."""
     summary = verdict.summarize(cfg, levels) if summary is None else summary
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
-    files.replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
-    summary_text = csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
-    files.replace(folder / "summary.csv", lambda path: path.write_text(summary_text))
-    work_text = csv_text(work_precision_rows(rows), WORK_PRECISION_COLUMNS)
-    files.replace(folder / "work_precision.csv", lambda path: path.write_text(work_text))
-    files.replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
+    texts = {"rates.csv": csv_text(rows),
+             "summary.csv": csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS),
+             "work_precision.csv": csv_text(work_precision_rows(rows), WORK_PRECISION_COLUMNS)}
+    writes = [(folder / name, functools.partial(Path.write_text, data=text)) for name, text in texts.items()]
+    writes.append((folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status)))
     if status is not None:
-        files.replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
+        writes.append((folder / STATUS_FILE, functools.partial(Path.write_text, data=status + "\n")))
+    files.replace_all(writes)
+
+
+def write_status(folder, status):
+    """status.txt alone, in place: when the results cannot be written (a full disk), it still says why."""
+    files.overwrite(Path(folder) / STATUS_FILE, status + "\n")
 
 
 def csv_text(rows, columns=None):
