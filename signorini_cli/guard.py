@@ -205,8 +205,10 @@ class Watch:
             return False
         settle(err, self.comm)
         state = self.ending(err)
-        if isinstance(err, (Interrupted, WriteFailed)):
+        if isinstance(err, Interrupted):
             err.note = self.note(state)
+        elif isinstance(err, WriteFailed):
+            err.note = f"; {state.split(':')[0]}{self.note(state).split(':', 1)[1]}"
         with deferred(drop=True):
             self.record(state)
         return False
@@ -236,7 +238,7 @@ class Watch:
         try:
             results.write_files(self.cfg, self.levels, results.table(self.levels), self.comm.size, state)
         except OSError as err:
-            logger.warning("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
+            logger.debug("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
             try:
                 results.write_status(self.cfg.output_dir, state)
             except OSError as again:

@@ -134,7 +134,10 @@ def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
     import h5py
     import numpy as np
     from .config import canonical, fingerprint
-    with h5py.File(path, "w") as h5:
+    # built in memory, then written as bytes: a full disk is then a plain OSError, never an HDF5 file
+    # left half-closed (h5py raises RuntimeError and HDF5 crashes with SEGV at exit)
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as h5:
         h5.attrs["config"] = cfg.text
         h5.attrs["study"] = cfg.study
         h5.attrs["mpi_size"] = mpi_size
@@ -151,6 +154,7 @@ def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
             _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row, np)
         if summary is not None:
             verdict.write_h5(h5.create_group("verification"), summary)
+    Path(path).write_bytes(buffer.getvalue())
 
 
 def _write_provenance(h5, cfg, levels):
