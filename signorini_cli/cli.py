@@ -15,6 +15,8 @@ except KeyboardInterrupt:
     print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
     sys.exit(130)
 
+logger = logging.getLogger(__name__)
+
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
 
@@ -102,6 +104,8 @@ def run(cfg, quiet=False, verbose=False, done=()):
 
     def on_level(levels):
         shown.level_done(watch.level_done(levels))
+        if len(levels) == len(done) + 1 and comm.rank == 0:  # the run's first level: its options were read
+            _warn_unused_options(cfg, levels[-1].index)
 
     with guard.Watch(cfg, done, comm) as watch:
         levels = study.run_study(run_cfg, on_level=on_level, comm=comm,
@@ -119,6 +123,16 @@ def run(cfg, quiet=False, verbose=False, done=()):
     if not summary.met:  # the user's `expect:` block: batch runs gate on it
         return EXIT_EXPECTATION_NOT_MET
     return EXIT_OK if all(lv.outcome.converged for lv in levels) else EXIT_NOT_CONVERGED
+
+
+def _warn_unused_options(cfg, level):
+    """Name the user's PETSc options that level `level`'s solves did not read (misspelt, or for
+    an object the study does not create): PETSc itself ignores them in silence."""
+    from . import solver
+    unused = solver.unused_options([name for name, _ in cfg.solver.petsc_options])
+    if unused:
+        logger.warning("solver.petsc_options: %s not used by PETSc in level %d (misspelt, or not an option "
+                       "of the solver and preconditioner in use)", ", ".join(unused), level)
 
 
 def with_monitors(cfg):
