@@ -89,8 +89,9 @@ def _run_command(args):
 def run(cfg, quiet=False, verbose=False, done=()):
     """Run the study (after the levels `done`), writing results and status after each level, with
     progress, the table, tables and plots on rank 0; status.txt says complete once the plots are written."""
-    from . import progress, report, results, study, verdict
+    from . import progress, report, results, solver, study, verdict
     guard.raise_on_closed_pipes()  # after PETSc's initialisation (study imports it), which traps SIGPIPE
+    solver.forget_read_options()  # _warn_unused_options: this run's solves only
     comm = MPI.COMM_WORLD
     run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
     if cfg.study_type in ("epsilon_sweep", "total_error"):  # own tables (docs/limit.md)
@@ -105,7 +106,8 @@ def run(cfg, quiet=False, verbose=False, done=()):
     def on_level(levels):
         shown.level_done(watch.level_done(levels))
         if len(levels) == len(done) + 1 and comm.rank == 0:  # the run's first level: its options were read
-            _warn_unused_options(cfg, levels[-1].index)
+            _warn_unused_options(solver.unused_options([name for name, _ in cfg.solver.petsc_options]),
+                                 levels[-1].index)
 
     with guard.Watch(cfg, done, comm) as watch:
         levels = study.run_study(run_cfg, on_level=on_level, comm=comm,
@@ -125,11 +127,9 @@ def run(cfg, quiet=False, verbose=False, done=()):
     return EXIT_OK if all(lv.outcome.converged for lv in levels) else EXIT_NOT_CONVERGED
 
 
-def _warn_unused_options(cfg, level):
+def _warn_unused_options(unused, level):
     """Name the user's PETSc options that level `level`'s solves did not read (misspelt, or for
     an object the study does not create): PETSc itself ignores them in silence."""
-    from . import solver
-    unused = solver.unused_options([name for name, _ in cfg.solver.petsc_options])
     if unused:
         logger.warning("solver.petsc_options: %s not used by PETSc in level %d (misspelt, or not an option "
                        "of the solver and preconditioner in use)", ", ".join(unused), level)

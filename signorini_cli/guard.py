@@ -208,7 +208,7 @@ class Watch:
         if isinstance(err, Interrupted):
             err.note = self.note(state)
         elif isinstance(err, WriteFailed):
-            err.note = f"; {state.split(':')[0]}{self.note(state).split(':', 1)[1]}"
+            err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
         with deferred(drop=True):
             self.record(state)
         return False

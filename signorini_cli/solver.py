@@ -450,6 +450,11 @@ def _clear_options(prefix):
 _used = set()  # option names (without prefix) some solver of this process read before it was cleared
 
 
+def forget_read_options():
+    """Start a new record for unused_options (a run's own options, not an earlier run's in this process)."""
+    _used.clear()
+
+
 def unused_options(names):
     """The option names among `names` (the user's solver.petsc_options) that no solver has read so
     far, neither one already destroyed nor one alive under a signorini prefix: misspelt, or options
