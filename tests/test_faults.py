@@ -210,17 +210,20 @@ def test_sigterm_while_drawing_figures_is_not_complete(tmp_path, monkeypatch, ca
 
 def test_sigterm_while_gmsh_meshes_ends_it(tmp_path):
     """gmsh meshes in C, where no Python handler runs: it meshes in a child process that SIGTERM kills.
-    Size 0.002 takes gmsh 49 s here; killed, the run ends in 0.4 s (measured): 20 s tells them apart."""
+    The unit cube at size 0.02: SIGTERM 1 s into its meshing ended the run 36 s later before (gmsh meshed
+    on), 0.4 s later now (measured); the 20 s limit tells them apart."""
     cache = tmp_path / "cache"
     config = tmp_path / "c.yaml"
-    config.write_text(yaml.safe_dump(merge(BASE, {"contact": "contact", "output": {"plots": False}, "mesh": {
-        "kind": "gmsh", "geometry": "unit_square", "sizes": [0.002], "cache": str(cache), "refinements": None}})))
+    config.write_text(yaml.safe_dump(merge(BASE, {
+        "dimension": 3, "contact": "contact", "output": {"plots": False},
+        "problem": {"exact": "sin(2*pi*x)*(1-z)**2"},
+        "mesh": {"kind": "gmsh", "geometry": "unit_cube", "sizes": [0.02], "cache": str(cache), "refinements": None}})))
     proc = subprocess.Popen([SIGNORINI, "run", str(config), "--output", str(tmp_path / "out"), "--force",
-                             "--quiet"],
-                            stderr=subprocess.PIPE, text=True)
+                             "--quiet"], stderr=subprocess.PIPE, text=True)
     started = time.monotonic()
     while not list(cache.glob(".*.tmp.msh")) and proc.poll() is None and time.monotonic() - started < 120:
-        time.sleep(0.02)  # the temporary .msh appears as gmsh starts meshing
+        time.sleep(0.02)  # the temporary .msh appears as gmsh starts
+    time.sleep(1.0)  # into the volume meshing
     proc.send_signal(signal.SIGTERM)
     try:
         _, err = proc.communicate(timeout=20)
