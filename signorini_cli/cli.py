@@ -1,16 +1,24 @@
 """Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force] [--resume]
 [-petsc_option [value] ...]`; check, init, list, report and compare."""
-import argparse
-import dataclasses
-import logging
-import re
 import sys
-from pathlib import Path
 
-import yaml
+try:  # Ctrl-C while the modules load (MPI starts here too): one line, no traceback
+    import argparse
+    import dataclasses
+    import logging
+    import re
+    from pathlib import Path
 
-from . import __version__, config, guard
-from .config import ConfigError
+    import yaml
+    from mpi4py import MPI
+
+    from . import __version__, config, guard
+    from .config import ConfigError
+except KeyboardInterrupt:
+    print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
+    sys.exit(130)
+
+logger = logging.getLogger(__name__)
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
@@ -130,36 +138,48 @@ def main(argv=None):
 def _run_command(args):
     try:
         cfg = _load(args)
-        _check_output(cfg, args.force or args.resume)
-        done = _prepare(cfg, args)
+        lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD)  # writable, and no other run writes it
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return _fail(args.config, err)
-    return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+    with lock:
+        try:
+            _check_output(cfg, args.force or args.resume)
+            done = _prepare(cfg, args)
+        except (ConfigError, yaml.YAMLError, OSError) as err:
+            return _fail(args.config, err)
+        return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
 
 
 def run(cfg, quiet=False, verbose=False, done=()):
     """Run the study (after the levels `done`), writing results and status after each solve, with
-    progress, the table(s), the verdict, tables and plots on rank 0; any study type."""
-    from mpi4py import MPI
-    from . import progress, report, results, study, verdict
+    progress, the table(s), the verdict, tables and plots on rank 0 (any study type); status.txt says
+    complete once the plots are written."""
+    from . import progress, report, results, solver, study, verdict
+    guard.raise_on_closed_pipes()  # after PETSc's initialisation (study imports it), which traps SIGPIPE
+    solver.forget_read_options()  # _warn_unused_options: this run's solves only
     comm = MPI.COMM_WORLD
     run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
     levels_study = cfg.study_type in results.LEVEL_STUDIES
     shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet and levels_study)
     shown.level = len(done)  # a resumed study starts further on
     if done and comm.rank == 0 and not quiet:
-        print(f"study {cfg.study}: resuming after level {done[-1].index}")
+        with guard.stdout_may_close():
+            print(f"study {cfg.study}: resuming after level {done[-1].index}")
 
     def on_level(result):
         shown.level_done(watch.level_done(result))
+        solved = len(list(result))
+        if solved == len(done) + 1 and comm.rank == 0:  # the run's first solve: its options were read
+            _warn_unused_options(solver.unused_options([name for name, _ in cfg.solver.petsc_options]),
+                                 solved - 1)
 
     with guard.Watch(cfg, done, comm) as watch:
         result = study.run_study(run_cfg, on_level=on_level, comm=comm,
                                  monitor=None if verbose or quiet else shown.monitor, done=done)
-    summary = verdict.summarize(cfg, result) if levels_study else None
-    if comm.rank == 0:
-        text = _outputs(cfg, result, summary)
-        if not quiet:
+        summary = verdict.summarize(cfg, result) if levels_study else None
+        text = watch.finish(lambda: _outputs(cfg, result, summary))
+    if comm.rank == 0 and not quiet:
+        with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
             print(text)
     if summary is not None and not summary.met:  # the user's `expect:` block: batch runs gate on it
         return EXIT_EXPECTATION_NOT_MET
@@ -177,6 +197,14 @@ def _outputs(cfg, result, summary):
                            plots=cfg.output.plots)
     return "\n".join([f"study {cfg.study}: {cfg.output_dir}", report.format_table(rows),
                       verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
+
+
+def _warn_unused_options(unused, level):
+    """Name the user's PETSc options that level `level`'s solves did not read (misspelt, or for
+    an object the study does not create): PETSc itself ignores them in silence."""
+    if unused:
+        logger.warning("solver.petsc_options: %s not used by PETSc in level %d (misspelt, or not an option "
+                       "of the solver and preconditioner in use)", ", ".join(unused), level)
 
 
 def with_monitors(cfg):
@@ -211,7 +239,6 @@ def init(args):
 
 def _prepare(cfg, args):
     """The finished levels to continue from (--resume), once the finest level fits in memory."""
-    from mpi4py import MPI
     from . import resources, resume
     if not args.force:
         resources.check_memory(cfg, MPI.COMM_WORLD)
@@ -230,7 +257,6 @@ def _check_output(cfg, force):
 
 
 def _fail(source, err):
-    from mpi4py import MPI
     if MPI.COMM_WORLD.rank == 0:
         message = _yaml_message(err) if isinstance(err, yaml.YAMLError) else str(err)
         message = " ".join(message.split("\n"))  # one line, always
@@ -263,6 +289,9 @@ def entry():
     apart from 1 (a level did not converge) and 2 (bad input)."""
     try:
         return main()
+    except KeyboardInterrupt:  # before the handlers of guard.supervise are in place (MPI starting)
+        print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
+        return 128 + 2
     except Exception:  # main() lets a bug's exception through, with its traceback, for tests and callers
         import traceback
         traceback.print_exc()

@@ -413,8 +413,10 @@ def from_dict(raw, folder=None):
     _keys(raw, "", required=REQUIRED, optional=keys_of(Config))
     top = _Section(raw, "", Config)
     study = top.string("study")
-    if "/" in study or study in (".", ".."):
+    if "/" in study or study in (".", "..") or not study.isprintable():  # no newline, NUL, tab ...
         raise ConfigError("study", f"must be a plain folder name, got {study!r}")
+    if len(study.encode()) > 255:  # NAME_MAX of Linux file systems
+        raise ConfigError("study", f"must be at most 255 bytes (a folder name), got {len(study.encode())}")
     mesh = _mesh(raw["mesh"], "mesh", Path(folder or "."))
     dim = _dimension(raw.get("dimension", mesh.dimension), mesh)
     alpha = top.number("alpha", low=1.0)

@@ -1,4 +1,5 @@
-"""Atomic file writes: results and cached meshes are never seen half-written."""
+"""Atomic file writes: results and cached meshes are never seen half-written; and the check that an
+output folder can be made and written before a study starts."""
 import os
 import tempfile
 from pathlib import Path
@@ -7,16 +8,65 @@ from pathlib import Path
 def replace(path, write_to):
     """Call write_to(tmp) on a temporary file in path's folder, then rename it onto path.
     The temporary name keeps path's suffix (gmsh picks its format from it)."""
-    path = Path(path)
+    replace_all([(path, write_to)])
+
+
+def replace_all(writes):
+    """replace() for several (path, write_to) at once: every temporary file is written before any is
+    renamed, so a failure (a full disk) replaces none and the files keep describing the same levels."""
+    staged = []
+    try:
+        for path, write_to in writes:
+            staged.append((_temporary(Path(path)), Path(path)))
+            write_to(staged[-1][0])
+        for tmp, path in staged:
+            os.replace(tmp, path)
+    finally:
+        for tmp, _ in staged:
+            if tmp.exists():
+                tmp.unlink()
+
+
+def _temporary(path):
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=f".tmp{path.suffix}")
     os.close(fd)
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; these files are as readable as any new file
+    return Path(tmp)
+
+
+def overwrite(path, text):
+    """Write `text` over path in place: the last resort on a full disk, where a temporary copy finds no
+    room but the file's own blocks, freed by the truncation, hold a line."""
+    with open(path, "w") as f:
+        f.write(text)
+
+
+def unwritable(folder):
+    """None when `folder` (and its missing parents) can be made and a file written in it, else one line
+    naming the path at fault. Leaves nothing behind: folders it made are removed again."""
+    folder = Path(os.path.abspath(folder))
+    existing = next(p for p in (folder, *folder.parents) if os.path.lexists(p))
+    if not existing.is_dir():
+        return f"{existing} is not a folder"
+    made = []
     try:
-        write_to(Path(tmp))
-        os.replace(tmp, path)
+        for missing in _missing(folder, existing):
+            missing.mkdir()
+            made.append(missing)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        return f"{err.filename or folder}: cannot write there: {err.strerror}"
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for path in reversed(made):
+            path.rmdir()
+    return None
+
+
+def _missing(folder, existing):
+    """The folders from below `existing` down to `folder`, outermost first."""
+    below = [p for p in (folder, *folder.parents) if p != existing and existing in p.parents]
+    return list(reversed(below))
 
 
 def _umask():

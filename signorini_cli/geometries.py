@@ -14,7 +14,7 @@ from mpi4py import MPI
 import dolfinx.mesh
 from dolfinx import cpp, fem
 
-from . import files, geometry_files, meshes, refinement
+from . import files, geometry_files, guard, meshes, refinement
 from .meshes import CONTACT, DIRICHLET
 
 logger = logging.getLogger(__name__)
@@ -83,7 +83,7 @@ def mesh_file(geo, size, dim, cache_dir, comm=MPI.COMM_WORLD):
         if path.exists():
             return path, False
         path.parent.mkdir(parents=True, exist_ok=True)
-        files.replace(path, lambda tmp: generate(geo, size, dim, tmp))
+        files.replace(path, lambda tmp: guard.in_child(generate, geo, size, dim, tmp))  # signals end it
         logger.info("meshed %s at size %g: %s", geo, size, path)
         return path, True
     return _on_rank0(comm, work, f"meshing {geo} at size {size:g}")

@@ -1,16 +1,22 @@
 """Faults around a study: SIGINT/SIGTERM end it cleanly, an exception on one rank ends every rank,
-and the study's status is kept on disk next to its results."""
+a study folder is written by one run at a time, a closed stdout ends output quietly, and the study's
+status is kept on disk next to its results."""
+import errno
+import fcntl
 import logging
 import os
+import pickle
 import signal
 import sys
 import time
 import traceback
 from contextlib import contextmanager
+from pathlib import Path
 
 from mpi4py import MPI
 
-from . import results
+from . import files, results
+from .config import ConfigError
 
 logger = logging.getLogger(__name__)
 
@@ -23,6 +29,7 @@ GRACE_S = 0.5
 # level starts, like a crash inside a level (tests/test_guard.py: one rank of two fails).
 TEST_FAIL = "SIGNORINI_TEST_FAIL"
 CRASH_STATUS = 3  # a bug (an exception that is no bad input): its traceback is printed, the status kept
+BAD_SURROUNDINGS = 2  # as bad input: the results could not be written (a full disk, a folder gone read-only)
 
 
 class Interrupted(BaseException):
@@ -36,6 +43,15 @@ class Interrupted(BaseException):
     @property
     def exit_status(self):
         return 128 + self.signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
+
+
+class WriteFailed(Exception):
+    """The study's files could not be written (OSError): the surroundings, not a bug. One line, exit 2."""
+
+    def __init__(self, folder, err):
+        super().__init__(f"{folder}: cannot write the results: {err.strerror or err}")
+        self.reason = err.strerror or str(err)
+        self.note = ""  # where the study stood, added by Watch
 
 
 class _Signals:
@@ -99,6 +115,10 @@ def supervise(body):
                 print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
             _abort_if_parallel(comm, sig.exit_status)
             return sig.exit_status
+        except WriteFailed as err:  # raised on rank 0 alone, the writer: it speaks and ends the others
+            print(f"signorini: error: {err}{err.note}", file=sys.stderr)
+            _abort_if_parallel(comm, BAD_SURROUNDINGS)
+            return BAD_SURROUNDINGS
         except Exception as err:
             if comm.size > 1:
                 settle(err, comm)
@@ -128,22 +148,24 @@ def _first_line(err):
     return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
 
 
-def status(cfg, result):
+def status(cfg, result, final=True):
     """'complete'; 'failed at level k: REASON' when a level did not converge and on_failure is stop;
-    else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels)."""
+    else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels), also with every
+    level done while tables and figures are still being written (final=False)."""
     solves = list(result)
     unit = "levels" if cfg.study_type in results.LEVEL_STUDIES else "solves"
     last = solves[-1] if solves else None
     if unit == "levels" and last and not last.outcome.converged and cfg.solver.on_failure == "stop":
         return f"failed at level {last.index}: {last.outcome.reason}"
-    if len(solves) == cfg.solves:
+    if len(solves) == cfg.solves and final:
         return "complete"
     return f"running ({len(solves)} of {cfg.solves} {unit} done)"
 
 
 class Watch:
     """Keeps a study's record current: rates.csv, study.h5 and status.txt at the start, after every
-    level, and when it ends: complete, failed at level k: reason, interrupted at level k."""
+    level, and when it ends: complete (once tables and figures are written too), failed at level k:
+    reason, interrupted at level k."""
 
     def __init__(self, cfg, done, comm):
         self.cfg, self.levels, self.comm = cfg, list(done), comm
@@ -158,11 +180,12 @@ class Watch:
         return self
 
     def level_done(self, levels):
-        """run_study's on_level: write the results whole (signals wait), then the testing hook; the rows."""
+        """run_study's on_level: write the results whole (signals wait), then the testing hook; the rows.
+        self.levels are the levels on disk: a level whose writing failed is not among them."""
         with deferred():
-            self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
             start = time.perf_counter()
-            rows = results_write(self.cfg, self.levels, self.comm)
+            rows = results_write(self.cfg, levels, self.comm, final=False)
+            self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
             if isinstance(self.levels, list) and len(self.levels) > self.recorded:  # the new level's t_output
                 timings = self.levels[-1].timings
                 timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
@@ -170,45 +193,75 @@ class Watch:
         fault_hook(len(list(self.levels)), self.comm)
         return rows
 
+    def finish(self, draw):
+        """draw() (tables and figures, on rank 0) -> its result; status.txt says complete only after it."""
+        with writing(self.cfg.output_dir):
+            return draw() if self.comm.rank == 0 else None
+
     def __exit__(self, kind, err, tb):
-        if err is None and len(list(self.levels)) > self.done:
-            with deferred():  # once more, so that the last level's record holds its own t_output
+        if err is None:
+            with deferred():  # the final status, and the last level's record with its own t_output
                 results_write(self.cfg, self.levels, self.comm)
             return False
-        if err is None or not isinstance(err, (Exception, Interrupted)):
+        if not isinstance(err, (Exception, Interrupted)):
             return False
         settle(err, self.comm)
         state = self.ending(err)
         if isinstance(err, Interrupted):
-            done = len(list(self.levels))
-            err.note = (f" at level {done}: the {done} finished level(s) are in "
-                        f"{self.cfg.output_dir}; continue with --resume" if state.startswith("interrupted")
-                        else f" as the study ended ({state}): results in {self.cfg.output_dir}")
+            err.note = self.note(state)
+        elif isinstance(err, WriteFailed):
+            err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
         with deferred(drop=True):
             self.record(state)
         return False
 
     def ending(self, err):
         """The status a study ending with `err` leaves."""
-        if status(self.cfg, self.levels).startswith("running"):
-            where = f"at level {len(list(self.levels))}"
-            if isinstance(err, Interrupted):
-                return f"interrupted {where}"
-            return f"failed {where}: {_first_line(err)}"
-        return status(self.cfg, self.levels)  # every level was done when it came
+        if not status(self.cfg, self.levels, final=False).startswith("running"):
+            return status(self.cfg, self.levels)  # stopped by on_failure: stop before it came
+        k = len(list(self.levels))
+        where = (f"at level {k}" if k < self.cfg.solves
+                 else f"while writing tables and figures (all {k} levels done)")
+        if isinstance(err, Interrupted):
+            return f"interrupted {where}"
+        return f"failed {where}: {err.reason if isinstance(err, WriteFailed) else _first_line(err)}"
+
+    def note(self, state):
+        """What the one line on stderr adds: where the study stood and how to go on."""
+        if state.startswith(("interrupted ", "failed ")):
+            where = state.split(" ", 1)[1].split(":")[0]
+            return (f" {where}: the {len(list(self.levels))} finished level(s) are in {self.cfg.output_dir}; "
+                    "continue with --resume")
+        return f" as the study ended ({state}): results in {self.cfg.output_dir}"
 
     def record(self, state):
-        """Write the results with `state` from this rank alone: the others may be gone or waiting."""
+        """Write the results with `state` from this rank alone: the others may be gone or waiting. When
+        they cannot be written (a full disk), status.txt alone, in place."""
         try:
             rows = results.main_table(self.cfg, self.levels)
             results.write_files(self.cfg, self.levels, rows, self.comm.size, state)
         except OSError as err:
-            logger.warning("could not record the status %r in %s: %s", state, self.cfg.output_dir, err)
+            logger.debug("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
+            try:
+                results.write_status(self.cfg.output_dir, state)
+            except OSError as again:
+                logger.warning("could not record the status %r: %s", state, again.strerror or again)
 
 
-def results_write(cfg, levels, comm):
-    """rates.csv, study.h5 and status.txt of the levels so far (collective); the table's rows."""
-    return results.write(cfg, levels, comm, status=status(cfg, levels))
+def results_write(cfg, levels, comm, final=True):
+    """rates.csv, study.h5 and status.txt of the levels so far (collective); the table's rows.
+    An OSError of the writer (rank 0) is a WriteFailed."""
+    with writing(cfg.output_dir):
+        return results.write(cfg, levels, comm, status=status(cfg, levels, final))
+
+
+@contextmanager
+def writing(folder):
+    """Within: an OSError is a WriteFailed naming `folder` (a full disk is no bug)."""
+    try:
+        yield
+    except OSError as err:
+        raise WriteFailed(folder, err) from err
 
 
 def fault_hook(level, comm):
@@ -216,3 +269,113 @@ def fault_hook(level, comm):
     spec = os.environ.get(TEST_FAIL)
     if spec and spec == f"{comm.rank}:{level}":
         raise RuntimeError(f"{TEST_FAIL}={spec}: rank {comm.rank} fails at the start of level {level}")
+
+
+# --- one run per study folder --------------------------------------------------------------------
+
+class FolderLock:
+    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it. The kernel
+    drops it when the process ends, however it ends: a killed run leaves no stale lock. Folders made
+    for it are removed again on release when they stayed empty (a refused run leaves nothing)."""
+
+    def __init__(self, folder, comm):
+        self.folder, self.fd, self.made = Path(folder), None, []
+        refusal = self._acquire() if comm.rank == 0 else None
+        refusal = comm.bcast(refusal, root=0)
+        if refusal is not None:
+            raise ConfigError("output.dir", refusal)
+
+    def _acquire(self):
+        """None once the lock is held, else why not."""
+        problem = files.unwritable(self.folder)  # not a folder, read-only, ...: before anything is made
+        if problem is not None:
+            return problem
+        try:
+            self.made = [p for p in (*reversed(self.folder.parents), self.folder) if not p.exists()]
+            self.folder.mkdir(parents=True, exist_ok=True)
+            self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return None
+        except OSError as err:
+            self.release()
+            if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                return f"{self.folder} is being written by another signorini run; wait for it to end or " \
+                       "choose another output folder"
+            return f"{err.filename or self.folder}: cannot write there: {err.strerror}"
+
+    def release(self):
+        if self.fd is not None:
+            os.close(self.fd)  # closing the last descriptor drops the flock
+            self.fd = None
+        for path in reversed(self.made):
+            try:
+                path.rmdir()  # only an empty folder: a run that wrote nothing leaves nothing
+            except OSError:
+                break
+        self.made = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+        return False
+
+
+# --- a closed stdout -----------------------------------------------------------------------------
+
+def raise_on_closed_pipes():
+    """Writing to a closed pipe raises BrokenPipeError again (Python's default), instead of PETSc's
+    SIGPIPE handler, which PetscInitialize installs, ending the run with exit 59 and its banner."""
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
+@contextmanager
+def stdout_may_close():
+    """Within: printing to a closed stdout (`signorini run cfg | head -1`) stops the printing quietly,
+    the rest of the run goes on; stdout then points at /dev/null so the exit's flush finds no pipe."""
+    try:
+        yield
+        sys.stdout.flush()
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+
+
+# --- C code that does not see signals ------------------------------------------------------------
+
+def in_child(work, *args):
+    """work(*args) in a forked child process, its result (picklable) returned here, its exception
+    raised here as a RuntimeError with its message. gmsh meshes in C, where a Python signal handler
+    cannot run; here the parent waits, and SIGINT/SIGTERM kill the child and go on as Interrupted."""
+    read_end, write_end = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: no MPI, no atexit handlers, only work
+        os.close(read_end)
+        _child(work, args, write_end)
+    os.close(write_end)
+    try:
+        with os.fdopen(read_end, "rb") as pipe:
+            answer = pipe.read()
+        os.waitpid(pid, 0)
+    except BaseException:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        raise
+    kind, value = pickle.loads(answer) if answer else ("error", "the meshing process died")
+    if kind == "error":
+        raise RuntimeError(value)
+    return value
+
+
+def _child(work, args, write_end):
+    for sig in SIGNALS:
+        signal.signal(sig, signal.SIG_DFL)
+    try:
+        answer = ("ok", work(*args))
+    except BaseException as err:  # whatever it is, the parent must hear of it
+        answer = ("error", str(err) or type(err).__name__)
+    with os.fdopen(write_end, "wb") as pipe:
+        pipe.write(pickle.dumps(answer))
+    os._exit(0)

@@ -82,21 +82,27 @@ def write(cfg, result, comm=MPI.COMM_WORLD, status=None):
 
 def write_files(cfg, result, rows, mpi_size, status=None, summary=None):
     """The writing of `write` by this rank alone, no collective: the fault path calls it on the rank
-    that failed. Each file is replaced atomically; status.txt last."""
+    that failed. Every file is written aside first, then all are renamed (status.txt last): a failure
+    such as a full disk replaces none of them, so the tables and study.h5 always hold the same solves."""
     if cfg.study_type not in LEVEL_STUDIES:
         return _write_limit_files(cfg, result, mpi_size, status)
     levels = result
     summary = verdict.summarize(cfg, levels) if summary is None else summary
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
-    files.replace(folder / "rates.csv", lambda path: path.write_text(csv_text(rows)))
-    summary_text = csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
-    files.replace(folder / "summary.csv", lambda path: path.write_text(summary_text))
-    work_text = csv_text(work_precision_rows(rows), WORK_PRECISION_COLUMNS)
-    files.replace(folder / "work_precision.csv", lambda path: path.write_text(work_text))
-    files.replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
+    texts = {"rates.csv": csv_text(rows),
+             "summary.csv": csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS),
+             "work_precision.csv": csv_text(work_precision_rows(rows), WORK_PRECISION_COLUMNS)}
+    writes = [(folder / name, functools.partial(Path.write_text, data=text)) for name, text in texts.items()]
+    writes.append((folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status)))
     if status is not None:
-        files.replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
+        writes.append((folder / STATUS_FILE, functools.partial(Path.write_text, data=status + "\n")))
+    files.replace_all(writes)
+
+
+def write_status(folder, status):
+    """status.txt alone, in place: when the results cannot be written (a full disk), it still says why."""
+    files.overwrite(Path(folder) / STATUS_FILE, status + "\n")
 
 
 def main_table(cfg, result):
@@ -116,20 +122,23 @@ def _write_limit_files(cfg, result, mpi_size, status):
     named = limit_tables(cfg, result)
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
-    for name, rows in named.items():
-        files.replace(folder / f"{name}.csv", lambda path, rows=rows: path.write_text(csv_text(rows)))
-    files.replace(folder / "study.h5", lambda path: _write_limit_h5(path, cfg, named, mpi_size, status))
+    writes = [(folder / f"{name}.csv", functools.partial(Path.write_text, data=csv_text(rows)))
+              for name, rows in named.items()]
+    writes.append((folder / "study.h5", lambda path: _write_limit_h5(path, cfg, named, mpi_size, status)))
     if status is not None:
-        files.replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
+        writes.append((folder / STATUS_FILE, functools.partial(Path.write_text, data=status + "\n")))
+    files.replace_all(writes)
 
 
 def _write_limit_h5(path, cfg, named, mpi_size, status):
     import h5py
-    with h5py.File(path, "w") as h5:
+    buffer = io.BytesIO()  # as _write_h5: a full disk is a plain OSError
+    with h5py.File(buffer, "w") as h5:
         _write_attrs(h5, cfg, mpi_size, status)
         h5.attrs["study_type"] = cfg.study_type
         for name, rows in named.items():
             _write_table(h5.create_group(name), rows)
+    Path(path).write_bytes(buffer.getvalue())
 
 
 # --- the ε → 0 studies' tables (docs/limit.md) -------------------------------------------------------
@@ -246,7 +255,10 @@ def versions():
 
 def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
     import h5py
-    with h5py.File(path, "w") as h5:
+    # built in memory, then written as bytes: a full disk is then a plain OSError, never an HDF5 file
+    # left half-closed (h5py raises RuntimeError and HDF5 crashes with SEGV at exit)
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as h5:
         _write_attrs(h5, cfg, mpi_size, status)
         h5.attrs["levels_done"] = len(levels)
         h5.attrs["config_hash"] = fingerprint(cfg)  # --resume continues only under the same hash
@@ -257,6 +269,7 @@ def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
             _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row)
         if summary is not None:
             verdict.write_h5(h5.create_group("verification"), summary)
+    Path(path).write_bytes(buffer.getvalue())
 
 
 def _write_attrs(h5, cfg, mpi_size, status):

@@ -1,6 +1,8 @@
 """Newton's method for one level: PETSc SNES on the residual and Jacobian forms, with a success test
 that cannot pass far from the solution, NaN/Inf detection, and a Jacobian condition estimate."""
+import ctypes
 import dataclasses
+import functools
 import itertools
 import math
 import time
@@ -438,4 +440,42 @@ def _clear_options(prefix):
     opts = PETSc.Options()
     for key in list(opts.getAll()):
         if key.startswith(prefix):
+            if _option_used(key):  # remembered for unused_options: deleting the option forgets it
+                _used.add(key[len(prefix):])
             opts.delValue(key)
+
+
+# --- PETSc options nobody read -------------------------------------------------------------------
+
+_used = set()  # option names (without prefix) some solver of this process read before it was cleared
+
+
+def forget_read_options():
+    """Start a new record for unused_options (a run's own options, not an earlier run's in this process)."""
+    _used.clear()
+
+
+def unused_options(names):
+    """The option names among `names` (the user's solver.petsc_options) that no solver has read so
+    far, neither one already destroyed nor one alive under a signorini prefix: misspelt, or options
+    of an object the study does not create (a GMRES restart for CG, a hypre option for LU)."""
+    alive = {key.split("_", 2)[2] for key in PETSc.Options().getAll()
+             if key.startswith("signorini_") and key.count("_") >= 2 and _option_used(key)}
+    return [name for name in names if name not in _used and name not in alive]
+
+
+def _option_used(key):
+    """PETSc's own record (PetscOptionsUsed) of whether `key` was read; petsc4py 3.18 does not wrap it."""
+    used = ctypes.c_int(0)  # PetscBool
+    _petsc_library().PetscOptionsUsed(None, key.encode(), ctypes.byref(used))
+    return bool(used.value)
+
+
+@functools.lru_cache(maxsize=1)
+def _petsc_library():
+    """The libpetsc this process runs (petsc4py's), found among the loaded libraries."""
+    with open("/proc/self/maps") as maps:
+        path = next(line.split()[-1] for line in maps if "/libpetsc" in line)
+    library = ctypes.CDLL(path)
+    library.PetscOptionsUsed.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
+    return library

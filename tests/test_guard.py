@@ -186,6 +186,12 @@ def test_status(make_config, levels, on_failure, expected):
     assert guard.status(cfg, levels) == expected
 
 
+def test_status_before_the_figures_is_not_complete(make_config):
+    """Every level done, tables and figures not yet written (final=False): still running."""
+    cfg = make_config(mesh={"refinements": [4, 8, 16]})
+    assert guard.status(cfg, [fake_level(i) for i in range(3)], final=False) == "running (3 of 3 levels done)"
+
+
 def test_sigterm_at_random_point_then_resume(tmp_path):
     """`signorini run` in its own process, SIGTERM at a random moment of the study, then --resume."""
     (tmp_path / "whole").mkdir()
