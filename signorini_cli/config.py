@@ -171,6 +171,8 @@ class Output:
     plots: bool = True    # PNG/PDF convergence, work-precision and Newton plots at the end of `run`
     fields: bool = False  # u_h, its error and the Γ_C contact indicator per level as XDMF (ParaView)
     digits: int = 3       # digits after the point of errors, h and eps in rates.md / rates.tex
+    columns: object = "paper"  # table columns: paper (the scene's bounded norms), all, or a list of columns
+    figure_width: float = 0.0  # figure width in pt ("390pt", "5.4in"); 0: the default, 360 pt
 
 
 @dataclass(frozen=True)
@@ -480,11 +482,39 @@ def _continuation(raw, path):
 
 
 def _output(raw, path):
-    _keys(raw, path, optional=("dir", "plots", "fields", "digits"))
+    _keys(raw, path, optional=("dir", "plots", "fields", "digits", "columns", "figure_width"))
     return Output(dir=_string(raw.get("dir", "results"), f"{path}.dir"),
                   plots=_boolean(raw.get("plots", True), f"{path}.plots"),
                   fields=_boolean(raw.get("fields", False), f"{path}.fields"),
-                  digits=_integer(raw.get("digits", 3), f"{path}.digits", low=1))
+                  digits=_integer(raw.get("digits", 3), f"{path}.digits", low=1),
+                  columns=table_columns(raw.get("columns", "paper"), f"{path}.columns"),
+                  figure_width=length(raw.get("figure_width", 0.0), f"{path}.figure_width"))
+
+
+def table_columns(value, path):
+    """"paper", "all", or a list (or comma-separated string) of column names, as a tuple."""
+    if value in ("paper", "all"):
+        return value
+    names = value.split(",") if isinstance(value, str) else value
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) and n.strip() for n in names):
+        raise ConfigError(path, f"must be paper, all or a list of column names, got {_show(value)}")
+    return tuple(n.strip() for n in names)
+
+
+LENGTH_UNITS = {"pt": 1.0, "in": 72.27, "cm": 72.27 / 2.54, "mm": 72.27 / 25.4}  # TeX points
+
+
+def length(value, path):
+    """A length in TeX points from a number (pt) or a string with a unit: "390pt", "5.4in", "12cm"."""
+    text = str(value).strip()
+    unit = next((u for u in LENGTH_UNITS if text.endswith(u)), "")
+    try:
+        points = float(text[:len(text) - len(unit)]) * LENGTH_UNITS.get(unit, 1.0)
+    except ValueError:
+        raise ConfigError(path, f"must be a length such as 390pt or 5.4in, got {_show(value)}") from None
+    if not 0 <= points <= 2000 or (points and points < 100):
+        raise ConfigError(path, f"must be between 100pt and 2000pt, got {_show(value)}")
+    return points
 
 
 def _verification(raw, path, problem):
