@@ -46,6 +46,11 @@ def _add_report_commands(sub):
     rep.add_argument("path", help="a study folder, its study.h5 or its rates.csv")
     rep.add_argument("--digits", type=int, help="digits after the point in rates.md/rates.tex "
                                                 "(default: the study's output.digits, else 3)")
+    rep.add_argument("--columns", metavar="SET", help="table columns: paper (the default: N, h, eps, Newton, the "
+                     "norms the paper bounds), all, or a comma-separated list (default: the study's output.columns)")
+    rep.add_argument("--width", metavar="LENGTH", help="figure width, e.g. 390pt or 5.4in (default: the study's "
+                     "output.figure_width, else 345pt)")
+    rep.add_argument("--per-norm", action="store_true", help="also one convergence figure per norm")
     rep.add_argument("--no-plots", action="store_true", help="tables only (matplotlib not imported)")
     rep.add_argument("--output", help="write into this folder instead of the study's")
     compare = sub.add_parser("compare", help="overlay the curves of several studies")
@@ -102,7 +107,7 @@ def run(cfg, quiet=False, verbose=False, done=()):
                                plots=cfg.output.plots)
         if not quiet:
             print(f"study {cfg.study}: {cfg.output_dir}")
-            print(report.format_table(rows))
+            print(report.format_table(rows, cfg))
             print(verdict.format_summary(summary))
             print("wrote " + ", ".join(path.name for path in written))
     if not summary.met:  # the user's `expect:` block: batch runs gate on it

@@ -1,5 +1,7 @@
 """Human-readable output: the terminal table, Markdown/LaTeX rate tables, and a study read back from disk."""
 import csv
+import logging
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +20,7 @@ FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniform
 SPEC_ORDER = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
               "L2", "rate_L2", "H1", "rate_H1", "time_s")
 FIT_LEVELS = 3  # fitted slopes without a config: verification.fit_levels' default
+logger = logging.getLogger(__name__)
 RATE_DEFINITION = r"rate: $\log(e_k/e_{k-1})/\log(h_k/h_{k-1})$ between successive levels"
 
 
@@ -107,7 +110,7 @@ def _format(column, value):
     if value is None:
         return "-"
     if isinstance(value, bool):
-        return "yes" if value else "NO"
+        return ("yes" if value else "NO") if column == "converged" else ("yes" if value else "no")
     if column.startswith("rate_"):
         return f"{value:.2f}"
     if column in FORMATS:
@@ -228,8 +231,14 @@ def _failures(rows, end="."):
 
 # --- reading a finished or partial study back ---------------------------------------------------
 
+class DamagedResults(OSError):
+    """A study file that cannot be read as a table (cut short, NaN where a count belongs, a group
+    missing): bad input for report and compare, which name the file."""
+
+
 def load(path):
-    """Read a study from its folder, its study.h5 or its rates.csv (no recomputation)."""
+    """Read a study from its folder, its study.h5 or its rates.csv (no recomputation). A damaged
+    study.h5 gives way to an intact rates.csv beside it (a warning says so)."""
     path = Path(path)
     if path.is_dir():
         h5, csv_path = path / "study.h5", path / "rates.csv"
@@ -238,23 +247,47 @@ def load(path):
         path = h5 if h5.exists() else csv_path
     if not path.exists():
         raise FileNotFoundError("No such file or folder")
-    return _load_csv(path) if path.suffix == ".csv" else _load_h5(path)
+    if path.suffix == ".csv":
+        return _load_csv(path)
+    try:
+        return _load_h5(path)
+    except DamagedResults as err:
+        fallback = path.parent / "rates.csv"
+        if not fallback.exists():
+            raise
+        try:
+            study = _load_csv(fallback)
+        except DamagedResults as also:
+            raise DamagedResults(f"{err}; {also}") from None
+        logger.warning("%s; reading %s instead", err, fallback)
+        return study
 
 
 def _load_h5(path):
     import h5py
-    with h5py.File(path, "r") as h5:
-        attrs = {key: _python(value) for key, value in h5.attrs.items()}
-        if attrs.get("study_type") in ("epsilon_sweep", "total_error"):  # docs/limit.md: no rate table
-            from .config import ConfigError
-            raise ConfigError("study_type", f"an {attrs['study_type']} study has no rate table to report; "
-                                            "its tables are the CSV files next to study.h5 (README: Results)")
-        table = h5.get("table")
-        columns = _columns(table) if table is not None else []
-        groups = sorted(name for name in h5 if name.startswith("level_"))
-        rows = [{c: _python(h5[name].attrs.get(c)) for c in columns} for name in groups]
+    try:
+        with h5py.File(path, "r") as h5:
+            attrs = {key: _python(value) for key, value in h5.attrs.items()}
+            if attrs.get("study_type") in ("epsilon_sweep", "total_error"):  # docs/limit.md: no rate table
+                raise ConfigError("study_type", f"an {attrs['study_type']} study has no rate table to report; "
+                                                "its tables are the CSV files next to study.h5 (README: Results)")
+            rows = _h5_rows(h5, path)
+    except DamagedResults:
+        raise
+    except (OSError, KeyError, ValueError) as err:  # h5py: truncated, or not HDF5 at all
+        raise DamagedResults(f"{path}: damaged, not readable as HDF5 ({_first_line(err)})") from None
+    _check_rows(rows, path)
     text = attrs.get("config_resolved") or attrs.get("config", "")
     return Study(attrs.get("study", path.parent.name), path.parent, rows, text, attrs)
+
+
+def _h5_rows(h5, path):
+    table = h5.get("table")
+    if table is None:
+        raise DamagedResults(f"{path}: damaged, no table group")
+    columns = _columns(table)
+    groups = sorted(name for name in h5 if name.startswith("level_"))
+    return [{c: _python(h5[name].attrs.get(c)) for c in columns} for name in groups]
 
 
 def _columns(table):
@@ -274,9 +307,44 @@ def _python(value):
 
 
 def _load_csv(path):
-    with open(path, newline="") as f:
-        rows = [{key: _csv_value(value) for key, value in row.items()} for row in csv.DictReader(f)]
+    try:
+        with open(path, newline="") as f:
+            reader = csv.DictReader(f)
+            raw = list(reader)
+    except (UnicodeDecodeError, csv.Error) as err:
+        raise DamagedResults(f"{path}: damaged, not a CSV table ({_first_line(err)})") from None
+    for k, row in enumerate(raw):
+        if None in row or None in row.values():  # more or fewer fields than the header: cut short
+            raise DamagedResults(f"{path}: damaged, row {k + 1} does not have the header's "
+                                 f"{len(reader.fieldnames)} fields")
+    rows = [{key: _csv_value(value) for key, value in row.items()} for row in raw]
+    _check_rows(rows, path)
     return Study(path.parent.name, path.parent, rows)
+
+
+# what every row of a study's table holds, whatever else it has
+ROW_TYPES = {"level": int, "N": int, "dofs": int, "h": float, "converged": bool}
+
+
+def _check_rows(rows, path):
+    """Raise DamagedResults naming `path` unless every row has its level's counts and a finite h > 0."""
+    for row in rows:
+        for column, kind in ROW_TYPES.items():
+            if not _valid(row.get(column), kind):
+                raise DamagedResults(f"{path}: damaged, {column} = {row.get(column)!r} "
+                                     f"at level {row.get('level')!r}")
+
+
+def _valid(value, kind):
+    if kind is bool or isinstance(value, bool):
+        return isinstance(value, bool) and kind is bool
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        return False
+    return float(value).is_integer() and value >= 0 if kind is int else value > 0
+
+
+def _first_line(err):
+    return str(err).splitlines()[0] if str(err) else type(err).__name__
 
 
 def _csv_value(text):
@@ -306,8 +374,9 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
     written[1].write_text(latex_table(study.rows, digits, caption, chosen, proven))
     if plots and study.rows:
         fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
+        figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))
         written += plotting.write_all(study.rows, folder, proven=proven, title=title(study, cfg),
-                                   fit_levels=fit_levels, **(figure or {}))
+                                      fit_levels=fit_levels, **figure)
     return written
 
 
