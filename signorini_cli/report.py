@@ -49,8 +49,9 @@ def choose(rows, columns="paper", proven=None):
     measured = norms(rows)
     if columns == "all":
         return [c for c in rows[0] if c not in measured and not c.startswith("rate_") and c != "reason"], measured
-    if columns == "paper":
-        return [c for c in PAPER_LEADING if c in rows[0]], paper_norms(measured, proven or {})
+    if columns == "paper":  # h goes when N gives it (h = c/N on every level): the caption says c
+        lead = [c for c in PAPER_LEADING if c in rows[0] and not (c == "h" and h_per_N(rows))]
+        return lead, paper_norms(measured, proven or {})
     unknown = [c for c in columns if c not in rows[0]]
     if unknown:
         raise ConfigError("output.columns", f"{unknown[0]!r} is not a column of this study; it has "
@@ -63,6 +64,14 @@ def paper_norms(measured, proven):
     Corollary 3.2 ii); with no proven rate known, the first two measured (L2, H1)."""
     shown = [n for n in measured if n in proven and not (n == "pos_gc_scaled" and "pos_gc" in proven)]
     return shown or measured[:2]
+
+
+def h_per_N(rows):
+    """c when h = c/N on every level (the structured meshes: N cells per side), else None."""
+    products = [row["h"] * row["N"] for row in rows if row.get("h") and row.get("N")]
+    if len(products) != len(rows) or not products:
+        return None
+    return products[0] if max(products) - min(products) <= 1e-9 * products[0] else None
 
 
 def _columns_of(cfg, columns):
@@ -159,10 +168,10 @@ def markdown_table(rows, digits=3, columns="paper", proven=None):
 
 def latex_table(rows, digits=3, caption="", columns="paper", proven=None):
     """The rate table as a booktabs `table` float (needs \\usepackage{booktabs}): "error | rate" under
-    each norm's short name, the definitions in the caption; numbers as $m \\cdot 10^{k}$."""
+    each norm's short name, the definitions in the caption; numbers as 2.303e-2."""
     lead, shown = choose(rows, columns, proven)
     first = len(lead) + 1
-    lines = [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{4pt}",
+    lines = [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{3pt}",
              r"\caption{" + _caption(caption, lead, shown, rows) + "}",
              r"\begin{tabular}{" + "r" * len(lead) + "rr" * len(shown) + "}", r"\toprule"]
     if shown:
@@ -183,6 +192,8 @@ def latex_table(rows, digits=3, caption="", columns="paper", proven=None):
 def _caption(caption, lead, shown, rows):
     """The caption: the study, then what each short name means, the rate, and the failed levels."""
     defined = [f"{names.name(c).tex}: {names.name(c).definition}" for c in lead + shown]
+    if "N" in lead and "h" not in lead and h_per_N(rows):
+        defined.insert(1, f"$h = {h_per_N(rows):.4g}/N$, the largest cell diameter")
     text = (_tex_escape(caption) + ". " if caption else "") + "; ".join(
         defined + ([RATE_DEFINITION] if shown else [])) + "."
     return " ".join([text] + [_tex_escape(line) for line in _failures(rows)])
@@ -220,8 +231,9 @@ def _scientific(value, digits):
 
 
 def _latex_number(value, digits):
+    """2.303e-2: the narrowest notation a reader knows ($m \\cdot 10^{k}$ would not fit the page)."""
     mantissa, exponent = f"{value:.{digits}e}".split("e")
-    return f"${mantissa}\\cdot 10^{{{int(exponent)}}}$"
+    return f"{mantissa}e{int(exponent)}"
 
 
 def _failures(rows, end="."):
