@@ -91,9 +91,10 @@ def format_table(rows, cfg=None, columns=None):
     lead, shown = choose(rows, chosen, proven_rates(cfg))
     if chosen == "paper":
         lead = lead + ["time_s"]
-    groups = [("", [(names.name(c).text if chosen == "paper" else c, [_format(c, r.get(c)) for r in rows])
-                    for c in lead])]
-    groups += [(names.name(n).text, [("error", [_format(n, r.get(n)) for r in rows]),
+    def label(column):  # short names for the paper's columns, the CSV's names for the others
+        return names.name(column).text if chosen == "paper" else column
+    groups = [("", [(label(c), [_format(c, r.get(c)) for r in rows]) for c in lead])]
+    groups += [(label(n), [("error", [_format(n, r.get(n)) for r in rows]),
                                      ("rate", [_format("rate_", r.get(f"rate_{n}")) for r in rows])])
                for n in shown]
     return "\n".join(_aligned(groups) + _failures(rows, end=""))
