@@ -120,16 +120,13 @@ def work_precision(rows, title="", width=WIDTH_PT, shown=None):
     shown = [n for n in (shown or curves) if n in curves]
     if not shown or any(row.get("time_s") is None for row in rows):
         return None
-    compile_known = all(row.get("t_forms") is not None for row in rows)
-    seconds = [row["time_s"] - (row["t_forms"] if compile_known else 0.0) for row in rows]
-    total = np.cumsum(seconds)  # failed levels cost time too
+    total, compile_known = work(rows)
     ncol = min(3, len(shown))
     fig, (ax,) = panels(1, width, -(-len(shown) // ncol), title)
     for i, norm in enumerate(shown):
         k = [j for j, row in enumerate(rows) if row["converged"] and row.get(norm)]
         ax.loglog(total[k], curves[norm][1], label=names.name(norm).text, **curve_style(i))
-    ax.set_xlabel("cumulative wall time [s]" + (", form compilation excluded" if compile_known
-                                                 else ", form compilation included"))
+    ax.set_xlabel(_work_label(compile_known))
     ax.set_ylabel("error")
     _legend_below(ax, ncol=ncol)
     _finish(fig, [ax])
@@ -170,10 +167,24 @@ def compare_convergence(studies, fit_levels=3, width=WIDTH_PT):
 def compare_work_precision(studies, width=WIDTH_PT):
     """A grid of one panel per norm, every study's error against its cumulative wall time."""
     def curve(rows, norm):
-        total = np.cumsum([row["time_s"] or 0.0 for row in rows])
+        total = work(rows)[0]
         k = [j for j, row in enumerate(rows) if row["converged"] and row.get(norm) is not None]
         return (total[k], np.array([rows[j][norm] for j in k])) if k else None
-    return _compare(studies, curve, "cumulative wall time [s]", None, width)
+    compile_known = all(work(rows)[1] for rows in studies.values())
+    return _compare(studies, curve, _work_label(compile_known), None, width)
+
+
+def work(rows):
+    """(cumulative wall time per level, whether form compilation was taken out): t_forms is a one-off
+    cost of level 0 that would dominate the axis; failed levels cost time too."""
+    compile_known = all(row.get("t_forms") is not None for row in rows)
+    seconds = [(row["time_s"] or 0.0) - (row["t_forms"] if compile_known else 0.0) for row in rows]
+    return np.cumsum(seconds), compile_known
+
+
+def _work_label(compile_known):
+    return "cumulative wall time [s], " + ("form compilation excluded" if compile_known
+                                           else "form compilation included")
 
 
 def _compare(studies, curve, xlabel, fit_levels, width):
@@ -188,7 +199,7 @@ def _compare(studies, curve, xlabel, fit_levels, width):
                 continue
             slope = fitted(list(xy[0]), list(xy[1]), [True] * len(xy[0]), fit_levels) if fit_levels else None
             ax.loglog(*xy, label=label + (f" (fit {slope:.2f})" if slope is not None else ""), **curve_style(i))
-        ax.set_title(names.name(norm).text, pad=3)
+        ax.set_ylabel(names.name(norm).text)
         ax.set_xlabel(xlabel)
         _legend_below(ax)
     _finish(fig, axes)

@@ -131,22 +131,20 @@ def _format(column, value):
 
 
 def summary_table(studies, fit_levels=FIT_LEVELS):
-    """One line per study ({label: rows}): levels, finest h, per norm the finest error and the slope
-    fitted over the last `fit_levels` levels, total wall time."""
+    """One line per study ({label: rows}): levels, finest h, per norm (under its name) the finest error
+    and the slope fitted over the last `fit_levels` levels, total wall time."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
-    header = ["study", "levels", "finest h"] + [f"{n} ({k})" for n in all_norms for k in ("finest", "fit")]
-    lines = [header + ["time_s"]]
-    for label, rows in studies.items():
-        ok = [row for row in rows if row["converged"]]
-        line = [label, str(len(rows)), f"{ok[-1]['h']:.3e}" if ok else "-"]
-        for norm in all_norms:
-            points = [(row["h"], row[norm]) for row in ok if row.get(norm)]
-            slope = fitted_slope(*zip(*points), k=fit_levels) if len(points) > 1 else None
-            line += [f"{points[-1][1]:.3e}" if points else "-", f"{slope:.2f}" if slope is not None else "-"]
-        lines.append(line + [f"{sum(row['time_s'] or 0.0 for row in rows):.2f}"])
-    widths = [max(len(line[i]) for line in lines) for i in range(len(header) + 1)]
-    return "\n".join("  ".join(cell.ljust(w) if i == 0 else cell.rjust(w)
-                               for i, (cell, w) in enumerate(zip(line, widths))) for line in lines)
+    ok = {label: [row for row in rows if row["converged"]] for label, rows in studies.items()}
+    lead = [("study", list(studies)), ("levels", [str(len(rows)) for rows in studies.values()]),
+            ("finest h", [f"{rows[-1]['h']:.3e}" if rows else "-" for rows in ok.values()]),
+            ("time_s", [f"{sum(row['time_s'] or 0.0 for row in rows):.2f}" for rows in studies.values()])]
+    groups = [("", lead)]
+    for norm in all_norms:
+        points = [[(row["h"], row[norm]) for row in rows if row.get(norm)] for rows in ok.values()]
+        groups.append((names.name(norm).text, [
+            ("finest", [f"{p[-1][1]:.3e}" if p else "-" for p in points]),
+            ("fit", [_rate(fitted_slope(*zip(*p), k=fit_levels) if len(p) > 1 else None, "-") for p in points])]))
+    return "\n".join(_aligned(groups))
 
 
 # --- tables for papers and notebooks (deal.II ConvergenceTable style: error, then its rate) ----
