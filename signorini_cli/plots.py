@@ -183,8 +183,7 @@ def work(rows):
 
 
 def _work_label(compile_known):
-    return "cumulative wall time [s], " + ("form compilation excluded" if compile_known
-                                           else "form compilation included")
+    return "cumulative time [s], " + ("JIT excluded" if compile_known else "JIT included")
 
 
 def _compare(studies, curve, xlabel, fit_levels, width):
