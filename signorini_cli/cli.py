@@ -70,6 +70,11 @@ def _add_report_commands(sub):
     rep.add_argument("path", help="a study folder, its study.h5 or its rates.csv")
     rep.add_argument("--digits", type=int, help="digits after the point in rates.md/rates.tex "
                                                 "(default: the study's output.digits, else 3)")
+    rep.add_argument("--columns", metavar="SET", help="table columns: paper (the default: N, h, eps, Newton, the "
+                     "norms the paper bounds), all, or a comma-separated list (default: the study's output.columns)")
+    rep.add_argument("--width", metavar="LENGTH", help="figure width, e.g. 390pt or 5.4in (default: the study's "
+                     "output.figure_width, else 345pt)")
+    rep.add_argument("--per-norm", action="store_true", help="also one convergence figure per norm")
     rep.add_argument("--no-plots", action="store_true", help="tables only (matplotlib not imported)")
     rep.add_argument("--output", help="write into this folder instead of the study's")
     compare = sub.add_parser("compare", help="overlay the curves of several studies")
@@ -195,7 +200,7 @@ def _outputs(cfg, result, summary):
     rows = results.table(result)
     written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
                            plots=cfg.output.plots)
-    return "\n".join([f"study {cfg.study}: {cfg.output_dir}", report.format_table(rows),
+    return "\n".join([f"study {cfg.study}: {cfg.output_dir}", report.format_table(rows, cfg),
                       verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
 
 

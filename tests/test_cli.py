@@ -19,7 +19,7 @@ def write(tmp_path, **changes):
 def test_run_writes_table(tmp_path, capsys):
     assert cli.main(["run", write(tmp_path)]) == cli.EXIT_OK
     out = capsys.readouterr().out
-    assert "rate_L2" in out and "study t" in out
+    assert "L²" in out and "rate" in out and "study t" in out  # the grouped table: each norm, error | rate
     assert (tmp_path / "out" / "t" / "study.h5").exists()
 
 
