@@ -3,19 +3,19 @@ on rank 0 and distributed with dolfinx.io.gmshio.model_to_mesh. Physical groups,
 decide Γ_C: the group the config's `contact` names; every other boundary facet is Γ_D."""
 import dataclasses
 import logging
-import os
 import signal
+import sys
 from pathlib import Path
 
 import numpy as np
 import ufl
 from mpi4py import MPI
 
-import dolfinx.mesh
 from dolfinx import cpp, fem
 
-from . import files, geometry_files, meshes, refinement
-from .meshes import CONTACT, DIRICHLET
+from . import config, files, geometry_files, refinement
+from .config import ConfigError
+from .domain import CONTACT, domain_of, tag_facets
 
 logger = logging.getLogger(__name__)
 
@@ -60,18 +60,9 @@ def read_level(mesh_cfg, contact, entry, comm=MPI.COMM_WORLD):
     if contact not in groups:
         raise GeometryError(f"{path}: no physical group {contact!r} of dimension {mesh_cfg.dimension - 1} "
                             f"(it has: {', '.join(groups) or 'none'})")
-    tags = tag_boundary(msh, facet_groups.indices[facet_groups.values == groups[contact]])
-    h, h_min = meshes.cell_sizes(msh)
-    return meshes.Domain(msh, tags, h, h_min, msh.topology.index_map(msh.topology.dim).size_global)
-
-
-def tag_boundary(msh, contact_facets):
-    """CONTACT on the boundary facets among `contact_facets`, DIRICHLET on every other boundary facet."""
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, msh.topology.dim)
-    boundary = dolfinx.mesh.exterior_facet_indices(msh.topology)
-    values = np.where(np.isin(boundary, contact_facets), CONTACT, DIRICHLET).astype(np.int32)
-    return dolfinx.mesh.meshtags(msh, fdim, boundary.astype(np.int32), values)
+    contact_facets = facet_groups.indices[facet_groups.values == groups[contact]]
+    tags = tag_facets(msh, lambda boundary: np.isin(boundary, contact_facets))
+    return domain_of(msh, tags, msh.topology.index_map(msh.topology.dim).size_global)
 
 
 # --- gmsh on rank 0 ------------------------------------------------------------------------------
@@ -190,7 +181,6 @@ def contact_quasi_uniformity(domain):
 def mesh_levels(cfg, comm=MPI.COMM_WORLD):
     """Mesh a gmsh config's levels (the base mesh with refine: uniform) into its cache, yielding
     (cache file, generated) per mesh; what gmsh cannot mesh is a ConfigError naming mesh.geometry."""
-    from .config import ConfigError
     geo = geometry_files.geometry_path(cfg.mesh.geometry)
     for size in cfg.mesh.sizes:
         try:
@@ -202,7 +192,6 @@ def mesh_levels(cfg, comm=MPI.COMM_WORLD):
 def cache_configs(paths, comm=MPI.COMM_WORLD):
     """mesh_levels of each gmsh config: yields (config path, cache file, generated). Other mesh kinds
     need nothing."""
-    from . import config
     for path in paths:
         cfg = config.load(path)
         if cfg.mesh.kind == "gmsh":
@@ -211,8 +200,6 @@ def cache_configs(paths, comm=MPI.COMM_WORLD):
 
 def main(argv=None):
     """`python -m signorini_cli.geometries CONFIG...` (make meshes): fill the mesh cache."""
-    import sys
-    from .config import ConfigError
     try:
         for path, msh, generated in cache_configs(sys.argv[1:] if argv is None else argv):
             print(f"{'meshed' if generated else 'cached'}  {msh}  ({path})")
