@@ -58,15 +58,16 @@ def row_owner(rows, count, size):
 def grid_cells(dim, n, rows, diagonal):
     """((cells, dim + 1) global vertex numbers of the cells in grid rows [rows) (2-D: rows of squares,
     3-D: layers of cubes), whether the grid has centre vertices (crossed)."""
-    stride = (n + 1) ** np.arange(dim)
-    slowest_first = np.meshgrid(np.arange(*rows), *([np.arange(n)] * (dim - 1)), indexing="ij")
-    origin = np.stack(slowest_first[::-1], axis=-1).reshape(-1, dim) @ stride  # v0 per square/cube, x fastest
-    corners = origin[:, None] + np.array([[(k >> a) & 1 for a in range(dim)] for k in range(2**dim)]) @ stride
+    origin = np.arange(*rows, dtype=np.int64) * (n + 1) ** (dim - 1)  # v0 of each square/cube, x fastest
+    for axis in reversed(range(dim - 1)):
+        origin = (origin[:, None] + np.arange(n, dtype=np.int64) * (n + 1) ** axis).ravel()
+    corners = origin[:, None] + np.array([sum(((k >> a) & 1) * (n + 1) ** a for a in range(dim))
+                                          for k in range(2**dim)], dtype=np.int64)
     crossed = dim == 2 and diagonal == "crossed"
     if crossed:  # centres numbered after the (n + 1)^2 grid points, one per square in cell index order
         corners = np.hstack([corners, (n + 1) ** 2 + np.arange(rows[0] * n, rows[1] * n)[:, None]])
     local = np.array(SQUARE_CELLS[diagonal] if dim == 2 else CUBE_CELLS)
-    return corners[:, local].reshape(-1, dim + 1).astype(np.int64), crossed
+    return corners[:, local].reshape(-1, dim + 1), crossed
 
 
 def vertex_count(dim, n, centre):
@@ -88,16 +89,18 @@ def grid_vertices(dim, n, block):
 
 def destinations(comm, dim, n, cells, rows):
     """The partition: each cell stays on this rank, and a cell with a facet on its slab's cut is ghosted
-    to the rank across it (a facet on the plane `row` has dim vertices in that row of grid points)."""
-    layer = np.where(cells < (n + 1) ** dim, cells // (n + 1) ** (dim - 1), -1)  # centres: on no plane
-    row = np.repeat(np.arange(*rows), len(cells) // max(rows[1] - rows[0], 1))
-    ranks = [np.full(len(cells), comm.rank)]
-    for side, plane in ((-1, row), (1, row + 1)):
-        across = np.clip(row + side, 0, n - 1)
-        owner = row_owner(across, n, comm.size)
-        cut = ((layer == plane[:, None]).sum(axis=1) == dim) & (row + side >= 0) & (row + side < n)
-        ranks.append(np.where(cut & (owner != comm.rank), owner, -1))
-    dest = np.stack(ranks, axis=1)
-    keep = dest >= 0
-    offsets = np.concatenate([[0], np.cumsum(keep.sum(axis=1))]).astype(np.int32)
-    return dolfinx.graph.create_adjacencylist(dest[keep].astype(np.int32), offsets)
+    to the rank across it (a facet on the plane of grid row k has dim vertices in that row of points)."""
+    ghosts = np.full((len(cells), 2), -1, dtype=np.int32)
+    per_row = len(cells) // max(rows[1] - rows[0], 1)
+    for side, row, part in ((0, rows[0], slice(0, per_row)), (1, rows[1] - 1, slice(len(cells) - per_row, None))):
+        across = row + (1 if side else -1)
+        if rows[1] > rows[0] and 0 <= across < n and row_owner(across, n, comm.size) != comm.rank:
+            plane = row + side  # the slab's bottom (row) or top (row + 1) plane of grid points
+            layer = np.where(cells[part] < (n + 1) ** dim, cells[part] // (n + 1) ** (dim - 1), -1)
+            cut = (layer == plane).sum(axis=1) == dim  # centres (crossed) lie on no plane
+            ghosts[part, side] = np.where(cut, row_owner(across, n, comm.size), -1)
+    keep = ghosts >= 0
+    offsets = np.arange(len(cells) + 1, dtype=np.int32)
+    offsets[1:] += np.cumsum(keep.sum(axis=1), dtype=np.int32)
+    dest = np.column_stack([np.full(len(cells), comm.rank, dtype=np.int32), ghosts])
+    return dolfinx.graph.create_adjacencylist(dest[np.column_stack([np.ones(len(cells), bool), keep])], offsets)
