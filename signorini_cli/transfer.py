@@ -14,6 +14,7 @@ from mpi4py import MPI
 
 from dolfinx import fem, geometry
 
+CHUNK = 2**16  # target points interpolated at once on the Kuhn path (152 MiB of temporaries at 1M in one go)
 BOX_TOL = 1e-8  # relative padding of a rank's bounding box: its points on the box's faces count as inside
 
 
@@ -185,7 +186,8 @@ def kuhn_transfer(u_source, n, V_target):
     for where, vals in comm.alltoall(sent):
         grid[where - lo * layer] = vals
     u_target = fem.Function(V_target)
-    u_target.x.array[:] = kuhn_interpolate(grid, n, targets, lo * layer)
+    for start in range(0, len(targets), CHUNK):  # in chunks: a dozen temporaries per point, not per mesh
+        u_target.x.array[start:start + CHUNK] = kuhn_interpolate(grid, n, targets[start:start + CHUNK], lo * layer)
     return u_target
 
 
