@@ -12,7 +12,8 @@ try:  # Ctrl-C while the modules load (MPI starts here too): one line, no traceb
     import yaml
     from mpi4py import MPI
 
-    from . import __version__, config, guard
+    from . import __version__, commands, config, guard
+    from .commands import EXIT_BAD_INPUT, EXIT_EXPECTATION_NOT_MET, EXIT_NOT_CONVERGED, EXIT_OK  # noqa: F401
     from .config import ConfigError
 except KeyboardInterrupt:
     print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
@@ -20,8 +21,6 @@ except KeyboardInterrupt:
 
 logger = logging.getLogger(__name__)
 
-EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
-EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
 
 
 CONFIG_HELP = f"study config (YAML; its keys: {config.DOCS}, or `signorini init`)"
@@ -128,154 +127,14 @@ def main(argv=None):
         try:
             argv, options = split_petsc_options(argv)
         except ConfigError as err:  # named after the config, as every bad input of run and check is
-            return _fail(next((t for t in argv[1:] if not t.startswith("-")), "command line"), err)
+            return commands.fail(next((t for t in argv[1:] if not t.startswith("-")), "command line"), err)
     args = build_parser().parse_args(argv)
     args.petsc_options = options
     setup_logging()
+    guard.raise_on_closed_pipes()  # PETSc, initialised as the commands' modules load, traps SIGPIPE
     if args.command == "init":
-        return init(args)
-    if args.command != "run":
-        from . import commands
-        return guard.supervise(lambda: commands.COMMANDS[args.command](args))
-    return guard.supervise(lambda: _run_command(args))  # signals, and faults on one rank of several
-
-
-def _run_command(args):
-    try:
-        cfg = _load(args)
-        lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD)  # writable, and no other run writes it
-    except (ConfigError, yaml.YAMLError, OSError) as err:
-        return _fail(args.config, err)
-    with lock:
-        try:
-            _check_output(cfg, args.force or args.resume)
-            done = _prepare(cfg, args)
-        except (ConfigError, yaml.YAMLError, OSError) as err:
-            return _fail(args.config, err)
-        return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
-
-
-def run(cfg, quiet=False, verbose=False, done=()):
-    """Run the study (after the levels `done`), writing results and status after each solve, with
-    progress, the table(s), the verdict, tables and plots on rank 0 (any study type); status.txt says
-    complete once the plots are written."""
-    from . import progress, report, results, solver, study, verdict
-    guard.raise_on_closed_pipes()  # after PETSc's initialisation (study imports it), which traps SIGPIPE
-    solver.forget_read_options()  # _warn_unused_options: this run's solves only
-    comm = MPI.COMM_WORLD
-    run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
-    levels_study = cfg.study_type in results.LEVEL_STUDIES
-    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet and levels_study)
-    shown.level = len(done)  # a resumed study starts further on
-    if done and comm.rank == 0 and not quiet:
-        with guard.stdout_may_close():
-            print(f"study {cfg.study}: resuming after level {done[-1].index}")
-
-    def on_level(result):
-        shown.level_done(watch.level_done(result))
-        solved = len(list(result))
-        if solved == len(done) + 1 and comm.rank == 0:  # the run's first solve: its options were read
-            _warn_unused_options(solver.unused_options([name for name, _ in cfg.solver.petsc_options]),
-                                 solved - 1)
-
-    with guard.Watch(cfg, done, comm) as watch:
-        result = study.run_study(run_cfg, on_level=on_level, comm=comm,
-                                 monitor=None if verbose or quiet else shown.monitor, done=done)
-        summary = verdict.summarize(cfg, result) if levels_study else None
-        text = watch.finish(lambda: _outputs(cfg, result, summary))
-    if comm.rank == 0 and not quiet:
-        with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
-            print(text)
-    if summary is not None and not summary.met:  # the user's `expect:` block: batch runs gate on it
-        return EXIT_EXPECTATION_NOT_MET
-    return EXIT_OK if all(solve.outcome.converged for solve in result) else EXIT_NOT_CONVERGED
-
-
-def _outputs(cfg, result, summary):
-    """Write the study's tables and plots (rank 0) and return what the terminal shows."""
-    from . import report, results, verdict
-    if summary is None:
-        named = results.limit_tables(cfg, result)
-        return report.limit_summary(cfg, named, report.write_limit(cfg, result, named))
-    rows = results.table(result)
-    written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
-                           plots=cfg.output.plots)
-    return "\n".join([f"study {cfg.study}: {cfg.output_dir}", report.format_table(rows, cfg),
-                      verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
-
-
-def _warn_unused_options(unused, level):
-    """Name the user's PETSc options that level `level`'s solves did not read (misspelt, or for
-    an object the study does not create): PETSc itself ignores them in silence."""
-    if unused:
-        logger.warning("solver.petsc_options: %s not used by PETSc in level %d (misspelt, or not an option "
-                       "of the solver and preconditioner in use)", ", ".join(unused), level)
-
-
-def with_monitors(cfg):
-    """cfg with PETSc's SNES/KSP monitors switched on (--verbose); the user's own options win."""
-    monitors = (("snes_monitor", ""), ("snes_converged_reason", ""), ("ksp_converged_reason", ""))
-    solver = dataclasses.replace(cfg.solver, petsc_options=monitors + cfg.solver.petsc_options)
-    return dataclasses.replace(cfg, solver=solver)
-
-
-def _load(args):
-    overrides = list(args.set) + ([f"output.dir={args.output}"] if args.output else [])
-    return config.load(args.config, overrides, getattr(args, "petsc_options", ()))
-
-
-def init(args):
-    """Print (or write to FILE) the commented config of every key with its default."""
-    from mpi4py import MPI
-    text = config.template()
-    if args.file is None:
-        if MPI.COMM_WORLD.rank == 0:
-            print(text, end="")
-        return EXIT_OK
-    if Path(args.file).exists() and not args.force:
-        return _fail(args.file, ConfigError("", "already exists; use --force to overwrite it"))
-    try:
-        if MPI.COMM_WORLD.rank == 0:
-            Path(args.file).write_text(text)
-    except OSError as err:
-        return _fail(args.file, err)
-    return EXIT_OK
-
-
-def _prepare(cfg, args):
-    """The finished levels to continue from (--resume), once the finest level fits in memory."""
-    from . import resources, resume
-    if not args.force:
-        resources.check_memory(cfg, MPI.COMM_WORLD)
-    if cfg.mesh.kind == "gmsh":  # what gmsh cannot mesh is bad input, found before any level runs
-        from . import geometries
-        list(geometries.mesh_levels(cfg, MPI.COMM_WORLD))
-    if args.resume and cfg.study_type != "refinement":
-        raise ConfigError("--resume", f"study_type {cfg.study_type} runs from the start; use --force")
-    return resume.finished_levels(cfg, MPI.COMM_WORLD) if args.resume else []
-
-
-def _check_output(cfg, force):
-    if any((cfg.output_dir / name).exists() for name in ("rates.csv", "study.h5")) and not force:
-        raise ConfigError("output.dir", f"{cfg.output_dir} already holds results; use --resume to continue "
-                                        "them or --force to overwrite")  # study.h5: also studies without rates.csv
-
-
-def _fail(source, err):
-    if MPI.COMM_WORLD.rank == 0:
-        message = _yaml_message(err) if isinstance(err, yaml.YAMLError) else str(err)
-        message = " ".join(message.split("\n"))  # one line, always
-        print(f"signorini: error: {source}: {message}", file=sys.stderr)
-    return EXIT_BAD_INPUT
-
-
-def _yaml_message(err):
-    mark = getattr(err, "problem_mark", None)
-    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-    context, start = getattr(err, "context", None), getattr(err, "context_mark", None)
-    # PyYAML notices an unclosed bracket or quote where the next token is; say where it was opened
-    opened = f" ({context} at line {start.line + 1}, column {start.column + 1})" if context and start else ""
-    return f"YAML syntax error: {where}{getattr(err, 'problem', None) or err}{opened}"
+        return commands.init(args)
+    return guard.supervise(lambda: commands.COMMANDS[args.command](args))  # signals, faults on one rank
 
 
 def setup_logging(level=logging.WARNING):

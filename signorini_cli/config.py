@@ -12,7 +12,7 @@ from pathlib import Path
 
 import yaml
 
-from . import expressions, geometry_files, petsc_options as petsc
+from . import expressions, geometry_files, names, petsc_options as petsc
 
 MESH_KINDS = {"unit_square": 2, "unit_cube": 3}
 GEOMETRY_KINDS = ("gmsh", "file")  # meshes from a .geo geometry or from .msh files (physical groups)
@@ -35,12 +35,11 @@ TABLE_COLUMNS = ("paper", "all")  # or a list of column names (report)
 MAX_ALPHA_3D = 3.0  # the paper's condition (5): 1 <= alpha <= 3 when d = 3
 COORDINATES = {2: ("x", "y"), 3: ("x", "y", "z")}
 # verification.measures: what a level measures beyond L2/H1 (issue 4; README "Verification")
-MEASURES = ("L2_gc", "pos_gc", "energy_err", "penetration", "contact_measure", "contact_force", "energy", "diff")
+MEASURES = names.MEASURE_KEYS
 REFERENCE_EPSILONS = ("per_level", "fixed")
 MAX_REFERENCE_REFINEMENTS = 2
 # rate columns an `expect:` block may name: exact-solution errors, errors against a reference, differences
-ERROR_NORMS = ("L2", "H1", "L2_gc", "pos_gc", "pos_gc_scaled", "energy_err")
-REFERENCE_NORMS = tuple(f"{norm}_ref" for norm in ERROR_NORMS) + ("diff_L2", "diff_H1")
+ERROR_NORMS, REFERENCE_NORMS = names.ERROR_NORMS, names.REFERENCE_NORMS
 STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error")  # the last three: docs/limit.md
 EXACT_SOLVES = ("compliance", "signorini")
 DOCS = 'README.md, section "Config"'  # where every key is described; `signorini init` prints them all

@@ -1,5 +1,6 @@
-"""Names of a study table's columns: the short name a header or an axis shows, and the definition a
-caption gives (report's tables, plots' axes and legends, progress lines all read them here)."""
+"""The measures a study can take and the names of a study table's columns, in one place: what each
+measure fills, needs and is bounded by (config, verification), the short name a header or an axis shows
+and the definition a caption gives (report's tables, plots' axes and legends, progress lines)."""
 from dataclasses import dataclass
 
 
@@ -49,3 +50,44 @@ def name(column):
                     base.definition.replace("u-u_h", ref + "-u_h").replace("[u]_+", f"[{ref}]_+"))
     plain = column.replace("_", " ")
     return Name(plain, r"\texttt{" + column.replace("_", r"\_") + "}", plain.replace("_", r"\_"))
+
+
+@dataclass(frozen=True)
+class Measure:
+    """A `verification.measures` entry beyond L2/H1: the table columns it fills, an error (with a rate) or
+    a quantity (a value), whether it needs a Γ_C face, the scenes (exact, data) that take it by default,
+    and the paper's result that bounds it (empty: none)."""
+    key: str
+    columns: tuple
+    kind: str
+    contact: bool
+    default: tuple
+    paper: str = ""
+
+
+BOTH = ("exact", "data")
+MEASURES = (
+    Measure("L2_gc", ("L2_gc",), "error", True, BOTH),
+    Measure("pos_gc", ("pos_gc", "pos_gc_scaled"), "error", True, BOTH, "Cor. 3.2 ii"),
+    Measure("energy_err", ("energy_err",), "error", True, BOTH, "Lemma 3.1"),
+    Measure("penetration", ("penetration",), "quantity", True, BOTH),
+    Measure("contact_measure", ("contact_measure",), "quantity", True, BOTH),
+    Measure("contact_force", ("contact_force",), "quantity", True, ("data",)),
+    Measure("energy", ("energy",), "quantity", False, ("data",)),
+    Measure("diff", ("diff_L2", "diff_H1"), "error", False, ("data",)),  # successive differences
+)
+MEASURE_KEYS = tuple(m.key for m in MEASURES)
+# the error columns against an exact solution, then against a reference solution (data-only scenes) and the
+# successive differences: the columns an `expect:` block may name
+ERROR_NORMS = ("L2", "H1") + tuple(c for m in MEASURES if m.kind == "error" and m.contact for c in m.columns)
+REFERENCE_NORMS = tuple(f"{norm}_ref" for norm in ERROR_NORMS) + next(m.columns for m in MEASURES if m.key == "diff")
+
+
+def defaults(scene):
+    """The measure keys a scene ("exact" or "data") takes unless verification.measures says otherwise."""
+    return tuple(m.key for m in MEASURES if scene in m.default)
+
+
+def measure_of(column):
+    """The Measure that fills `column`, or None (L2, H1)."""
+    return next((m for m in MEASURES if column in m.columns), None)

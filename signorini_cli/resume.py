@@ -3,6 +3,7 @@ import json
 
 from . import config, results, solver
 from .config import ConfigError
+from .study import Level
 
 # row columns that Level's own fields and Outcome produce (results.table); any other is Level.extra
 OWN_COLUMNS = (set(results.SPEC_COLUMNS) | set(results.EXTRA_COLUMNS) | {"cumulative_time_s"}
@@ -77,7 +78,6 @@ def _flat(tree, prefix=""):
 
 def _level(group, columns):
     """One Level back from its group level_NN: the row as attributes, the residual history."""
-    from .study import Level
     a = group.attrs
     outcome = solver.Outcome(converged=bool(a["converged"]), reason=str(a["reason"]),
                              newton_its=int(a["newton_its"]), linear_its=int(a["linear_its"]),

@@ -3,23 +3,19 @@ errors against a reference solution for data-only scenes; written as Level.extra
 import ufl
 from mpi4py import MPI
 
-from . import measure, model, rates, reference
+from . import measure, model, names, rates, reference
 from .meshes import CONTACT
 
-CONTACT_ERRORS = ("L2_gc", "pos_gc", "pos_gc_scaled", "energy_err")
-# what a scene measures unless verification.measures says otherwise
-DEFAULT_MEASURES = {"exact": ("L2_gc", "pos_gc", "energy_err", "penetration", "contact_measure"),
-                    "data": ("L2_gc", "pos_gc", "energy_err", "penetration", "contact_measure",
-                             "contact_force", "energy", "diff")}
-NEEDS_CONTACT = ("L2_gc", "pos_gc", "energy_err", "penetration", "contact_measure", "contact_force")
-QUANTITIES = ("penetration", "contact_measure", "contact_force", "energy")  # no rates: values, not errors
+CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
+NEEDS_CONTACT = tuple(m.key for m in names.MEASURES if m.contact)
+QUANTITIES = tuple(m.key for m in names.MEASURES if m.kind == "quantity")  # no rates: values, not errors
 
 
 def measures(cfg):
     """The measures a study takes: verification.measures, else the scene's defaults."""
     if cfg.verification.measures is not None:
         return cfg.verification.measures
-    return DEFAULT_MEASURES["exact" if cfg.problem.exact is not None else "data"]
+    return names.defaults("exact" if cfg.problem.exact is not None else "data")
 
 
 class Verifier:

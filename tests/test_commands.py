@@ -5,7 +5,7 @@ import sys
 import pytest
 import yaml
 
-from signorini_cli import cli, config, results, study
+from signorini_cli import cli, commands, config, results, study
 from conftest import BASE, merge
 
 
@@ -147,7 +147,7 @@ def test_run_progress_and_quiet(tmp_path, capsys):
 
 
 def test_run_verbose_adds_petsc_monitors(make_config):
-    cfg = cli.with_monitors(make_config(solver={"petsc_options": {"snes_monitor": "draw"}}))
+    cfg = commands.with_monitors(make_config(solver={"petsc_options": {"snes_monitor": "draw"}}))
     options = dict(cfg.solver.petsc_options)
     assert options["snes_monitor"] == "draw" and "ksp_converged_reason" in options  # the user's option wins
 

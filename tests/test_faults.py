@@ -276,7 +276,7 @@ def test_unused_petsc_options_are_named(tmp_path, capsys, options, unused):
     is then never read by PETSc; the run names it in one warning after its first level."""
     config = write_config(tmp_path, solver={"petsc_options": options})
     assert cli.main(["run", config, "--output", str(tmp_path / "out"), "--quiet"]) == cli.EXIT_OK
-    expected = (f"WARNING signorini_cli.cli: solver.petsc_options: {', '.join(unused)} not used by PETSc in "
+    expected = (f"WARNING signorini_cli.commands: solver.petsc_options: {', '.join(unused)} not used by PETSc in "
                 "level 0 (misspelt, or not an option of the solver and preconditioner in use)\n") if unused else ""
     assert capsys.readouterr().err == expected
 

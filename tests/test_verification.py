@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 import dolfinx.mesh
 from dolfinx import fem
-from signorini_cli import meshes, model, results, stability, study, verification
+from signorini_cli import meshes, model, names, results, stability, study, verification
 from signorini_cli.meshes import DIRICHLET
 
 GAMMA_C = ["L2_gc", "rate_L2_gc", "pos_gc", "rate_pos_gc", "pos_gc_scaled", "rate_pos_gc_scaled",
@@ -54,7 +54,7 @@ def test_only_asked_measures(make_config):
 
 def test_no_contact_part_no_gamma_c_columns(make_config):
     """A scene whose boundary is all Γ_D (as a gmsh geometry without a contact group would be)."""
-    cfg = make_config(verification={"measures": list(verification.DEFAULT_MEASURES["data"])})
+    cfg = make_config(verification={"measures": list(names.defaults("data"))})
     domain = meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF)
     tags = domain.facet_tags
     all_dirichlet = dolfinx.mesh.meshtags(domain.mesh, 1, tags.indices, np.full_like(tags.values, DIRICHLET))
