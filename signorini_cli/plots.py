@@ -319,3 +319,34 @@ def _finish(fig, axes):
         for axis, scale in ((ax.xaxis, ax.get_xscale()), (ax.yaxis, ax.get_yscale())):
             if scale == "log":
                 readable_log_axis(axis)
+
+
+# --- the ε → 0 studies ---------------------------------------------------------------------------
+
+def model_error(rows, path, width=WIDTH_PT):
+    """The model-error figure of `rows` (one mesh of an ε-sweep) as `path` (its suffix picks the format)."""
+    with styled():
+        model_error_figure(rows, width).savefig(path)
+    return path
+
+
+def model_error_figure(rows, width=WIDTH_PT):
+    """H1 and L2 model error |u_ε,h − u_S,h| against ε, one curve per α, log-log, with the slope 1/α over
+    the smaller half of the sweep; a Figure on the Agg canvas (no pyplot)."""
+    alphas = sorted({r["alpha"] for r in rows})
+    title = f"Model error of the compliance model on the fixed mesh N = {rows[0]['N']}"
+    fig, axes = panels(2, width, len(alphas), title)
+    for ax, norm in zip(axes, ("H1", "L2")):
+        for k, alpha in enumerate(alphas):
+            curve = [r for r in rows if r["alpha"] == alpha and r[norm] is not None]
+            eps, err = [r["epsilon"] for r in curve], [r[norm] for r in curve]
+            style = curve_style(k)
+            ax.loglog(eps, err, color=style["color"], marker=style["marker"], label=f"α = {alpha:g}")
+            tail = eps[len(eps) // 2:]  # through the last point
+            ax.loglog(tail, [err[-1] * (e / eps[-1]) ** (1 / alpha) for e in tail], ls=":", lw=2,
+                      color=style["color"], label=f"slope 1/{alpha:g}")
+        ax.set_xlabel("ε")
+        ax.set_ylabel(f"{names.name(norm).text} model error")
+        _legend_below(ax, ncol=2)
+    _finish(fig, axes)
+    return fig

@@ -45,7 +45,7 @@ def test_check_applies_set_and_output(tmp_path, capsys):
 @pytest.mark.parametrize("override, message", [
     pytest.param("alpha=0", "alpha: must be >= 1, got 0", id="range"),
     pytest.param("epsilon.law=thetah", "epsilon.law: 'thetah' is not one of theta_h", id="choice"),
-    pytest.param("solver.rtl=1e-8", "solver.rtl: unknown key in solver (did you mean 'rtol'?)", id="typo"),
+    pytest.param("solver.rtl=1e-8", "solver.rtl: unknown key in solver (did you mean 'solver.rtol'?)", id="typo"),
     pytest.param("alpha.x=1", "alpha: is not a mapping, cannot set a sub-key", id="not-mapping"),
     pytest.param("alpha", "--set: expected KEY=VALUE, got 'alpha'", id="no-equals"),
     pytest.param("output.plots=maybe", "output.plots: must be true or false, got str 'maybe'", id="bool"),
