@@ -41,17 +41,44 @@ test-mpi: setup
 run: setup
 	$(SIGNORINI) run $(CONFIG) --force
 
-studies: setup
-	@set -e; for c in $(CONFIGS); do echo "== $$c"; $(SIGNORINI) run $$c --force || test $$? -eq 1; done
+# --- batch runs: one target per config -------------------------------------------------------------
+# A run's record is a stamp results/.make/<set>/<config>.status holding its exit status; it depends on the
+# config file and the package sources, so `make -j2 studies` runs two studies side by side and a second
+# `make studies` re-runs only the configs (or all of them after a package change) that changed. Exit 1
+# (a level did not converge, an `expect:` rate missed) is recorded, not fatal: the page targets name those
+# studies after writing their page. --output-sync keeps each study's lines together under -j.
+PACKAGE := pyproject.toml $(wildcard signorini_cli/*.py)
+MADE := results/.make
+MAKEFLAGS += --output-sync=target
+# $(call run,config,extra arguments,launcher): run it, record its status (0 or 1; anything else fails)
+define run
+@mkdir -p $(dir $@)
+@echo "== $(1)"
+@$(3) $(SIGNORINI) run $(1) --force $(2); status=$$?; \
+  if [ $$status -gt 1 ]; then exit $$status; fi; echo $$status > $@
+endef
+# $(call missed,stamps): fail naming the studies whose status is not 0
+define missed
+@missed=$$(grep -L '^0$$' $(1) | sed 's|^$(MADE)/[^/]*/||; s|\.status$$||' | tr '\n' ' '); \
+  if [ -n "$$missed" ]; then echo "levels not converged or expectations not met: $$missed"; exit 1; fi
+endef
 
-# The configs/paper studies, then docs/verification.md from their results (page written even when an
-# `expect:` block is missed; the target fails afterwards, naming the studies).
-verify: setup
-	@set -e; missed=""; for c in $(PAPER_CONFIGS); do echo "== $$c"; \
-	  $(SIGNORINI) run $$c --force --output $(PAPER_RESULTS) || { test $$? -eq 1; missed="$$missed $$c"; }; done; \
-	mkdir -p docs; $(PY) scripts/verification_page.py $(PAPER_RESULTS) $(PAPER_CONFIGS) > docs/verification.md.tmp; \
-	mv docs/verification.md.tmp docs/verification.md; echo "wrote docs/verification.md"; \
-	if [ -n "$$missed" ]; then echo "expectations not met or levels not converged:$$missed"; exit 1; fi
+STUDY_STAMPS := $(CONFIGS:%=$(MADE)/studies/%.status)
+studies: $(STUDY_STAMPS)
+$(MADE)/studies/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<)
+
+# The configs/paper studies into results/paper, then docs/verification.md from their results (the page
+# is written even when an `expect:` block is missed; the target fails afterwards, naming the studies).
+PAPER_STAMPS := $(PAPER_CONFIGS:%=$(MADE)/paper/%.status)
+verify: docs/verification.md
+	$(call missed,$(PAPER_STAMPS))
+$(MADE)/paper/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<,--output $(PAPER_RESULTS))
+docs/verification.md: $(PAPER_STAMPS) scripts/verification_page.py scripts/provenance.py
+	@mkdir -p docs
+	$(PY) scripts/verification_page.py $(PAPER_RESULTS) $(PAPER_CONFIGS) > $@.tmp
+	@mv $@.tmp $@; echo "wrote $@"
 
 # gmsh meshes of every config's geometry levels into meshes/cache/ (studies also fill it on demand)
 meshes: setup
@@ -59,11 +86,15 @@ meshes: setup
 
 # configs/gmsh studies serially and on $(NP) ranks, then docs/geometries.md from their tables
 GMSH_CONFIGS := $(shell find configs/gmsh -name '*.yaml' | sort)
-geometries: setup
-	@set -e; for c in $(GMSH_CONFIGS); do echo "== $$c"; \
-	  $(SIGNORINI) run $$c --force --output results/geometries/serial || test $$? -eq 1; \
-	  $(MPIRUN) $(SIGNORINI) run $$c --force --output results/geometries/mpi > /dev/null || test $$? -eq 1; done
-	$(PY) scripts/geometries_page.py results/geometries/serial results/geometries/mpi $(GMSH_CONFIGS) > docs/geometries.md
+GMSH_STAMPS := $(GMSH_CONFIGS:%=$(MADE)/geometries-serial/%.status) $(GMSH_CONFIGS:%=$(MADE)/geometries-mpi/%.status)
+geometries: docs/geometries.md
+$(MADE)/geometries-serial/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<,--output results/geometries/serial)
+$(MADE)/geometries-mpi/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<,--output results/geometries/mpi,$(MPIRUN))
+docs/geometries.md: $(GMSH_STAMPS) scripts/geometries_page.py scripts/provenance.py
+	$(PY) scripts/geometries_page.py results/geometries/serial results/geometries/mpi $(GMSH_CONFIGS) > $@.tmp
+	@mv $@.tmp $@; echo "wrote $@"
 
 clean:
 	rm -rf results build *.egg-info .pytest_cache
@@ -71,19 +102,24 @@ clean:
 
 # The Signorini limit (docs/limit.md): run configs/limit/, then write the page and its plot from the runs.
 LIMIT_CONFIGS := $(sort $(wildcard configs/limit/*.yaml))
+LIMIT_STAMPS := $(LIMIT_CONFIGS:%=$(MADE)/limit/%.status)
 .PHONY: limit
-limit: setup
-	@set -e; missed=""; for c in $(LIMIT_CONFIGS); do echo "== $$c"; \
-	  $(SIGNORINI) run $$c --force || { test $$? -eq 1; missed="$$missed $$c"; }; done; \
-	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out docs/limit.md; \
-	if [ -n "$$missed" ]; then echo "levels not converged or expectations not met:$$missed"; exit 1; fi
+limit: docs/limit.md
+	$(call missed,$(LIMIT_STAMPS))
+$(MADE)/limit/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<)
+docs/limit.md: $(LIMIT_STAMPS) scripts/limit_page.py scripts/provenance.py
+	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out $@
 
 .PHONY: stiff
 # the stiff suite, the regular studies with strategy auto, a delta sweep and a conditioning sweep -> docs/stability.md
-stiff: setup
+# (one script runs them all: re-run when it, a config or the package changed)
+stiff: docs/stability.md
+docs/stability.md: scripts/stability.py scripts/provenance.py $(CONFIGS) $(PACKAGE) | $(STAMP)
 	$(PY) scripts/stability.py
 
 .PHONY: bench
 # issue 6: bench/configs/ serially, on $(NP) ranks and with three start strategies -> bench/results.md, .csv
-bench: setup
+bench: bench/results.md
+bench/results.md: scripts/bench.py scripts/provenance.py $(wildcard bench/configs/*.yaml) $(PACKAGE) | $(STAMP)
 	$(PY) scripts/bench.py

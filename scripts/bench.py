@@ -71,7 +71,7 @@ def main(argv=None):
             for name, config, ranks, overrides in BENCH_RUNS + CHOICE_RUNS + SCALING_RUNS}
     (ROOT / "bench").mkdir(exist_ok=True)
     write_csv(ROOT / "bench" / "results.csv", runs, machine)
-    (ROOT / "bench" / "results.md").write_text(page(runs, machine))
+    (ROOT / "bench" / "results.md").write_text(page(runs, machine) + report_cost())
     print("wrote bench/results.csv, bench/results.md")
 
 
@@ -326,3 +326,27 @@ def _choice_cell(row):
 
 if __name__ == "__main__":
     main()
+
+
+def report_cost(repeats=3):
+    """Issue 16: `signorini report` of the demo's 2-D study with N = 8..512 (7 levels), with its default
+    figures and with --no-plots, each in fresh processes (best of `repeats`); a section of the page."""
+    out = RUNS / "report"
+    subprocess.run(SIGNORINI + ["run", "configs/demo.yaml", "--force", "--quiet", "--output", str(out), "--set",
+                                "mesh.refinements=[8, 16, 32, 64, 128, 256, 512]", "--set", "output.plots=false"],
+                   cwd=ROOT, check=True)
+    seconds = {}
+    for label, extra in (("with figures", []), ("--no-plots", ["--no-plots"])):
+        times = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            subprocess.run(SIGNORINI + ["report", str(out / "demo"), "--output", str(out / "drawn")] + extra,
+                           cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+            times.append(time.perf_counter() - start)
+        seconds[label] = min(times)
+    ratio = seconds["with figures"] / seconds["--no-plots"]
+    return "\n".join(["", "## Report and figures (issue 16)", "",
+                      "`signorini report` of `configs/demo.yaml` with N = 8..512 (7 levels), best of "
+                      f"{repeats} fresh processes: {seconds['with figures']:.2f} s with its default figures "
+                      f"(convergence, work–precision, Newton; PNG and PDF), {seconds['--no-plots']:.2f} s with "
+                      f"`--no-plots`: {ratio:.2f}× (target ≤ 2.5×).", ""])

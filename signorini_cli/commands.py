@@ -94,7 +94,7 @@ def report_study(args):
         digits = args.digits if args.digits is not None else (cfg.output.digits if cfg is not None else 3)
         if digits < 1:
             raise ConfigError("--digits", f"must be >= 1, got {digits}")
-        columns = _columns(args.columns) if args.columns else None
+        columns = config.table_columns(args.columns, "--columns") if args.columns else None
         figure = {"width": config.length(args.width, "--width") if args.width else None,
                   "per_norm": args.per_norm}
         written = []
@@ -168,12 +168,6 @@ def _labels(studies):
     return [name if names.count(name) == 1 else f"{name} ({study.folder})" for name, study in zip(names, studies)]
 
 
-
-
-def _columns(text):
-    """--columns: paper, all, or column names separated by commas."""
-    value = text if text in config.TABLE_COLUMNS else text.split(",")
-    return config.table_columns(value, "--columns")
 
 
 def _run_command(args):

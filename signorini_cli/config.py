@@ -226,7 +226,8 @@ class Output:
     fields: bool = key(False, "u_h, its error and the Γ_C contact indicator per level as XDMF")
     digits: int = key(3, "digits after the point of errors, h and eps in rates.md / rates.tex")
     columns: object = key("paper", "table columns: paper | all | a list of column names")
-    figure_width: float = key(0.0, "figure width: 390pt, 5.4in, 12cm (0: the default, 360 pt)")
+    figure_width: float = key(0.0, "figure width in pt, or with a unit: 390pt, 5.4in (0: 345 pt, the text "
+                              "width of a default LaTeX article)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -686,19 +687,22 @@ def _output(raw, path):
     _keys(raw, path, optional=keys_of(Output))
     s = _Section(raw, path, Output)
     return Output(dir=s.string("dir"), plots=s.boolean("plots"), fields=s.boolean("fields"),
-                  digits=s.integer("digits", low=1), columns=table_columns(s.get("columns"), s.at("columns")),
+                  digits=s.integer("digits", low=1), columns=_columns(s.get("columns"), s.at("columns")),
                   figure_width=length(s.get("figure_width"), s.at("figure_width")))
 
 
-def table_columns(value, path):
-    """paper | all | a non-empty list of column names, as a tuple (report checks the names against the
-    table)."""
-    if value in TABLE_COLUMNS:
-        return value
-    names = value
-    if not isinstance(names, list) or not names or not all(isinstance(n, str) and n.strip() for n in names):
-        raise ConfigError(path, f"must be {' | '.join(TABLE_COLUMNS)} or a list of column names, got {_show(value)}")
-    return tuple(n.strip() for n in names)
+def _columns(value, path):
+    """paper | all | a non-empty list of column names (report checks the names against the table)."""
+    if isinstance(value, list):
+        if not value or not all(isinstance(c, str) and c for c in value):
+            raise ConfigError(path, f"must be {' | '.join(TABLE_COLUMNS)} or a non-empty list of column names")
+        return tuple(value)
+    return _choice(value, path, TABLE_COLUMNS)
+
+
+def table_columns(text, path):
+    """A command-line value: paper, all, or comma-separated column names."""
+    return _columns(text if text in TABLE_COLUMNS else [c.strip() for c in text.split(",")], path)
 
 
 LENGTH_UNITS = {"pt": 1.0, "in": 72.27, "cm": 72.27 / 2.54, "mm": 72.27 / 25.4}  # TeX points

@@ -1,4 +1,7 @@
-"""Fields for ParaView (output.fields: true): u_h, its error and the Γ_C contact indicator, XDMF per level."""
+"""Fields for ParaView and meshio (output.fields: true): u_h, its error and the Γ_C contact indicator, XDMF
+per level."""
+import xml.etree.ElementTree as ET
+
 import numpy as np
 
 from .meshes import CONTACT
@@ -20,7 +23,34 @@ def write(folder, index, domain, u_h, u_exact):
         if u_exact is not None:
             xdmf.write_function(nodal_error(u_h, u_exact))
         xdmf.write_function(contact_indicator(u_h, domain))
+    if msh.comm.rank == 0:
+        one_grid(path)
+    msh.comm.barrier()
     return path
+
+
+XI = "{http://www.w3.org/2001/XInclude}include"
+
+
+def one_grid(path):
+    """Rewrite dolfinx's XDMF (a mesh grid, a tag grid and a temporal collection per function) as one
+    grid holding every function as a node attribute, which ParaView and meshio both read; the boundary
+    tags go to <name>_boundary.xdmf with the mesh's geometry written out (same .h5 file)."""
+    ET.register_namespace("xi", "http://www.w3.org/2001/XInclude")
+    tree = ET.parse(path)
+    domain = tree.getroot().find("Domain")
+    grids = domain.findall("Grid")
+    mesh, boundary = grids[0], next(g for g in grids if g.get("Name") == "boundary")
+    for collection in grids[1:]:
+        if collection.get("GridType") == "Collection":
+            mesh.extend(collection.find("Grid").findall("Attribute"))
+        domain.remove(collection)
+    tree.write(path, xml_declaration=True, encoding="utf-8")
+    include = boundary.find(XI)
+    boundary.insert(list(boundary).index(include), mesh.find("Geometry"))
+    boundary.remove(include)
+    domain[:] = [boundary]
+    tree.write(path.with_name(f"{path.stem}_boundary.xdmf"), xml_declaration=True, encoding="utf-8")
 
 
 def nodal_error(u_h, u_exact):

@@ -400,16 +400,14 @@ def proven_rates(cfg):
     return {norm: rate for norm, rate in found.items() if rate is not None}
 
 
-# the ε law in plain text, for figure titles (no mathtext: it costs more than the drawing)
-
-
 def title(study, cfg=None):
     """A one-line plot title: dimension, alpha and the eps law, or the study name alone."""
     if cfg is None:
         return study.name
     if cfg.study_type == "signorini":  # the variational inequality: no alpha, no eps (docs/limit.md)
         return f"{study.name}: d = {cfg.dimension}, Signorini variational inequality (ε = 0)"
-    return f"{study.name}: d = {cfg.dimension}, α = {cfg.alpha:g}, ε = {cfg.epsilon.formula()}"
+    law = "θ" + config.LAWS[cfg.epsilon.law].text.format(p=cfg.epsilon.p)
+    return f"{study.name}: d = {cfg.dimension}, α = {cfg.alpha:g}, ε = {law}, θ = {cfg.epsilon.theta:g}"
 
 
 # --- the ε → 0 studies (docs/limit.md): their tables in the terminal, sub-study reports, the figure ----
@@ -436,8 +434,8 @@ def limit_summary(cfg, named, written):
     for name in ("reference", "fitted", "total"):
         if name in named:
             lines.append(f"\n{name}:\n{format_rows(named[name])}")
-    names = [f"{name}.csv" for name in named] + [str(path.relative_to(cfg.output_dir)) for path in written]
-    lines.append("wrote " + (", ".join(names) if len(names) <= 4 else f"{len(names)} tables and figures "
+    files = [f"{name}.csv" for name in named] + [str(path.relative_to(cfg.output_dir)) for path in written]
+    lines.append("wrote " + (", ".join(files) if len(files) <= 4 else f"{len(files)} tables and figures "
                              "(rates.md, rates.tex, plots) in the sub-study folders"))
     return "\n".join(lines)
 

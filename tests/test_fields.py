@@ -1,4 +1,7 @@
-"""output.fields: u_h, its nodal error and the Γ_C contact indicator per level as XDMF, serial and 2 ranks."""
+"""output.fields: u_h, its nodal error and the Γ_C contact indicator per level as XDMF (one grid: ParaView
+and meshio), serial and 2 ranks."""
+import xml.etree.ElementTree as ET
+
 import h5py
 import numpy as np
 import pytest
@@ -24,6 +27,21 @@ def check_fields(cfg, levels):
 def test_fields_written_per_level(make_config):
     cfg = make_config(output={"fields": True})
     check_fields(cfg, study.run_study(cfg))
+
+
+def test_fields_one_grid_for_paraview_and_meshio(make_config):
+    cfg = make_config(mesh={"refinements": [4]}, output={"fields": True})
+    (level,) = study.run_study(cfg)
+    path = cfg.output_dir / "fields" / "level_00.xdmf"
+    grids = ET.parse(path).getroot().findall("Domain/Grid")  # meshio: "Only supports one grid"
+    assert len(grids) == 1 and [a.get("Name") for a in grids[0].findall("Attribute")] == ["u_h", "error", "contact"]
+    boundary = ET.parse(path.with_name("level_00_boundary.xdmf")).getroot().findall("Domain/Grid")
+    assert [g.get("Name") for g in boundary] == ["boundary"] and boundary[0].find("Geometry") is not None
+    meshio = pytest.importorskip("meshio")  # python3-meshio
+    mesh = meshio.read(path)
+    assert len(mesh.points) == level.dofs and set(mesh.point_data) == {"u_h", "error", "contact"}
+    with h5py.File(path.with_suffix(".h5"), "r") as h5:
+        assert np.array_equal(mesh.point_data["u_h"][:, 0], h5["Function/u_h/0"][:, 0])
 
 
 def test_fields_off_by_default(make_config):
