@@ -13,8 +13,7 @@ parametrize_configs = pytest.mark.parametrize("path", CONFIGS, ids=[str(p.relati
 
 def coarse(path, tmp_path):
     cfg = config.load(path)
-    return config.loads(cfg.text, [f"mesh.{cfg.mesh.level_key}={list(cfg.mesh.levels[:2])}",
-                                   f"output.dir={tmp_path}"])
+    return config.load(path, [f"mesh.{cfg.mesh.level_key}={list(cfg.mesh.levels[:2])}", f"output.dir={tmp_path}"])
 
 
 @parametrize_configs
@@ -27,7 +26,7 @@ def test_config_header_cites_the_proven_rates(path):
             or cfg.positive_part.kind != "exact"):  # the paper says nothing of a smoothed positive part
         return
     header = " ".join(line for line in path.read_text().splitlines() if line.startswith("#"))
-    p = rates.law_exponent(cfg.epsilon)
+    p = cfg.epsilon.p
     for norm in ("H1", "L2"):
         found = rates.expected(cfg.dimension, cfg.alpha, p, norm)
         if found.rate is not None:
