@@ -633,16 +633,25 @@ DELTA_EPS = tuple(10.0 ** -k for k in range(0, 13, 2))
 def _check_delta(delta, path, epsilon):
     """δ > 0 with δ² a positive finite number at every (h, eps) a study can meet: δ = 0 makes the
     smoothed [u]_+ non-differentiable (NaN), δ² = inf or 0 overflows or underflows."""
+    for h, eps in _delta_points(epsilon):
+        try:
+            value = delta({"h": h, "eps": eps}, expressions.math_functions())
+            ok = value > 0 and 0 < value * value < math.inf
+        except (ValueError, OverflowError, ZeroDivisionError):
+            value, ok = math.nan, False
+        if not ok:
+            raise ConfigError(path, f"must be > 0 with a finite, nonzero square for every h in (0, 1] and "
+                                    f"eps > 0, got {value:g} at h = {h:g}, eps = {eps:g}")
+
+
+def _delta_points(epsilon):
+    """The (h, eps) where δ is checked: DELTA_H against DELTA_EPS and the law's own eps(h)."""
     for h in DELTA_H:
-        for eps in DELTA_EPS + (epsilon(h),):
-            try:
-                value = delta({"h": h, "eps": eps}, expressions.math_functions())
-                ok = value > 0 and 0 < value * value < math.inf
-            except (ValueError, OverflowError, ZeroDivisionError):
-                value, ok = math.nan, False
-            if not ok:
-                raise ConfigError(path, f"must be > 0 with a finite, nonzero square for every h in (0, 1] and "
-                                        f"eps > 0, got {value:g} at h = {h:g}, eps = {eps:g}")
+        try:
+            own = (epsilon(h),)
+        except OverflowError:  # power law with a large negative exponent: not an eps a level can have
+            own = ()
+        yield from ((h, eps) for eps in DELTA_EPS + own)
 
 
 def _solver(raw, path):

@@ -577,3 +577,9 @@ def test_recursive_alias_rejected():
 
 def test_aliases_below_the_limit_load():
     assert config.yaml_load(billion_laughs(levels=4))["l3"][0][0][0] == ["x"] * 10
+
+
+def test_delta_check_survives_an_overflowing_law():
+    """eps = h^-100 overflows a float at h = 1e-6: the δ check skips that point instead of crashing."""
+    cfg = load({"epsilon": {"law": "power", "exponent": -100}, "positive_part": "smooth"})
+    assert cfg.positive_part.delta.text == config.DEFAULT_DELTA

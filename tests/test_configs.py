@@ -13,8 +13,7 @@ parametrize_configs = pytest.mark.parametrize("path", CONFIGS, ids=[str(p.relati
 
 def coarse(path, tmp_path):
     cfg = config.load(path)
-    return config.loads(cfg.text, [f"mesh.{cfg.mesh.level_key}={list(cfg.mesh.levels[:2])}",
-                                   f"output.dir={tmp_path}"])
+    return config.load(path, [f"mesh.{cfg.mesh.level_key}={list(cfg.mesh.levels[:2])}", f"output.dir={tmp_path}"])
 
 
 @parametrize_configs
