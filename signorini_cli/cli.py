@@ -1,11 +1,12 @@
 """Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force] [--resume]`;
 check, list, report and compare."""
-import argparse
-import dataclasses
-import logging
 import sys
 
 try:  # Ctrl-C while the modules load (MPI starts here too): one line, no traceback
+    import argparse
+    import dataclasses
+    import logging
+
     import yaml
     from mpi4py import MPI
 

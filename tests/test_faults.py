@@ -241,7 +241,8 @@ def test_ctrl_c_while_starting_no_traceback(tmp_path, delay):
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
-    if "init_import_site" in err:  # Python's own start (~40 ms, before site.py is done): no code of ours yet
+    # Python's own start-up (site.py, finding the package: the first ~60 ms here) runs no code of ours yet
+    if "init_import_site" in err or ("Traceback" in err and "/signorini_cli/" not in err):
         pytest.skip(f"SIGINT after {delay} s came during Python's own start-up under this load")
     # -SIGINT: the signal came before Python's own handler was in place (the default action, also no traceback)
     assert proc.returncode in (128 + signal.SIGINT, -signal.SIGINT), err
