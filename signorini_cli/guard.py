@@ -335,9 +335,14 @@ def stdout_may_close():
         yield
         sys.stdout.flush()
     except BrokenPipeError:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        os.close(devnull)
+        stdout_to_devnull()
+
+
+def stdout_to_devnull():
+    """Point stdout at /dev/null: what is still buffered for a closed pipe goes nowhere, quietly."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 # --- C code that does not see signals ------------------------------------------------------------

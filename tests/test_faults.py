@@ -264,6 +264,18 @@ def test_closed_stdout_quiet_and_files_complete(tmp_path):
     assert (out / "t" / "rates.md").read_text().count("\n") >= 4  # header, rule and both levels
 
 
+@pytest.mark.parametrize("command", [pytest.param(["list"], id="list"), pytest.param(["report"], id="report")])
+def test_closed_stdout_other_commands_quiet(tmp_path, command):
+    """`signorini list | head -1`, `signorini report STUDY | head -1`: exit 0, no BrokenPipeError traceback."""
+    if command == ["report"]:
+        assert cli.main(["run", write_config(tmp_path), "--output", str(tmp_path / "out"), "--quiet"]) == 0
+        command = ["report", str(tmp_path / "out" / "t"), "--no-plots"]
+    proc = subprocess.Popen([SIGNORINI, *command], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == cli.EXIT_OK and err == "", err
+
+
 # --- class 1: PETSc options nobody read ----------------------------------------------------------
 
 @pytest.mark.parametrize("options, unused", [
