@@ -1,16 +1,18 @@
-"""Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force] [--resume]`;
-check, list, report and compare."""
+"""Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force] [--resume]
+[-petsc_option [value] ...]`; check, init, list, report and compare."""
 import sys
 
 try:  # Ctrl-C while the modules load (MPI starts here too): one line, no traceback
     import argparse
     import dataclasses
     import logging
+    import re
+    from pathlib import Path
 
     import yaml
     from mpi4py import MPI
 
-    from . import guard
+    from . import __version__, config, guard
     from .config import ConfigError
 except KeyboardInterrupt:
     print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
@@ -22,11 +24,19 @@ EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
 
 
+CONFIG_HELP = f"study config (YAML; its keys: {config.DOCS}, or `signorini init`)"
+PETSC_HELP = ("PETSc options such as -snes_monitor or -ksp_rtol 1e-8 may follow the config (or `--`): they join "
+              "solver.petsc_options, under the study's prefix")
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="signorini", description=__doc__.split(":")[0])
+    parser = argparse.ArgumentParser(prog="signorini", description=__doc__.split(":")[0],
+                                     epilog=f"Config keys: {config.DOCS}; `signorini init` prints every key "
+                                            "with its default.")
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="run a convergence study")
-    run.add_argument("config", help="study config (YAML)")
+    run = sub.add_parser("run", help="run a convergence study", epilog=PETSC_HELP)
+    run.add_argument("config", help=CONFIG_HELP)
     run.add_argument("--output", help="results folder (overrides output.dir)")
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a config key, e.g. --set epsilon.theta=10 (repeatable)")
@@ -43,17 +53,28 @@ def build_parser():
 
 
 def _add_report_commands(sub):
-    check = sub.add_parser("check", help="validate a config and print its resolved settings, no solve")
-    check.add_argument("config", help="study config (YAML)")
+    check = sub.add_parser("check", help="validate a config and print its resolved settings, no solve",
+                           epilog=PETSC_HELP)
+    check.add_argument("config", help=CONFIG_HELP)
     check.add_argument("--output", help="results folder (overrides output.dir)")
     check.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        help="override a config key, as for run (repeatable)")
+    init = sub.add_parser("init", help="a commented config with every key and its default",
+                          description=f"Every config key with its default and a one-line description "
+                                      f"(more in {config.DOCS}); valid as it stands.")
+    init.add_argument("file", nargs="?", help="write it here (default: print it)")
+    init.add_argument("--force", action="store_true", help="overwrite FILE")
     listing = sub.add_parser("list", help="the shipped configs with their descriptions")
     listing.add_argument("folder", nargs="?", help="a folder of configs (default: the shipped configs/)")
     rep = sub.add_parser("report", help="tables and plots of a finished or partial study, no recomputation")
     rep.add_argument("path", help="a study folder, its study.h5 or its rates.csv")
     rep.add_argument("--digits", type=int, help="digits after the point in rates.md/rates.tex "
                                                 "(default: the study's output.digits, else 3)")
+    rep.add_argument("--columns", metavar="SET", help="table columns: paper (the default: N, h, eps, Newton, the "
+                     "norms the paper bounds), all, or a comma-separated list (default: the study's output.columns)")
+    rep.add_argument("--width", metavar="LENGTH", help="figure width, e.g. 390pt or 5.4in (default: the study's "
+                     "output.figure_width, else 345pt)")
+    rep.add_argument("--per-norm", action="store_true", help="also one convergence figure per norm")
     rep.add_argument("--no-plots", action="store_true", help="tables only (matplotlib not imported)")
     rep.add_argument("--output", help="write into this folder instead of the study's")
     compare = sub.add_parser("compare", help="overlay the curves of several studies")
@@ -62,10 +83,57 @@ def _add_report_commands(sub):
     compare.add_argument("--output", help="folder for the figures (default: compare/ next to the first study)")
 
 
+class _Version(argparse.Action):
+    """--version: the package's and dolfinx's versions (dolfinx imported only when asked)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="print the versions of signorini and dolfinx")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        import dolfinx
+        print(f"signorini {__version__} (dolfinx {dolfinx.__version__})")
+        parser.exit()
+
+
+PETSC_OPTION = re.compile(r"^-[A-Za-z]\w*$")  # -snes_monitor; not --set, not a negative number
+TAKES_VALUE = ("--set", "--output")
+
+
+def split_petsc_options(argv):
+    """(argv without PETSc options, [(name, value)]) for run and check: `-name [value]` tokens after the
+    command, and every token after `--`. A value is the next token unless it is an option itself."""
+    rest, options, i, after_dash = [], [], 0, False
+    while i < len(argv):
+        token = argv[i]
+        if token == "--" and not after_dash:
+            after_dash, i = True, i + 1
+        elif token in TAKES_VALUE and not after_dash:
+            rest, i = rest + argv[i:i + 2], i + 2
+        elif PETSC_OPTION.match(token) and token != "-h":
+            has_value = i + 1 < len(argv) and not PETSC_OPTION.match(argv[i + 1]) and argv[i + 1] != "--"
+            options.append((token[1:], argv[i + 1] if has_value else ""))
+            i += 2 if has_value else 1
+        elif after_dash:
+            raise ConfigError("--", f"{token!r} is not a PETSc option (-name [value])")
+        else:
+            rest, i = rest + [token], i + 1
+    return rest, options
+
+
 def main(argv=None):
     """Entry point; returns the exit status (0 converged, 1 a level did not, 2 bad input)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    options = []
+    if argv[:1] in (["run"], ["check"]):
+        try:
+            argv, options = split_petsc_options(argv)
+        except ConfigError as err:  # named after the config, as every bad input of run and check is
+            return _fail(next((t for t in argv[1:] if not t.startswith("-")), "command line"), err)
     args = build_parser().parse_args(argv)
+    args.petsc_options = options
     setup_logging()
+    if args.command == "init":
+        return init(args)
     if args.command != "run":
         from . import commands
         return guard.supervise(lambda: commands.COMMANDS[args.command](args))
@@ -88,44 +156,52 @@ def _run_command(args):
 
 
 def run(cfg, quiet=False, verbose=False, done=()):
-    """Run the study (after the levels `done`), writing results and status after each level, with
-    progress, the table, tables and plots on rank 0; status.txt says complete once the plots are written."""
+    """Run the study (after the levels `done`), writing results and status after each solve, with
+    progress, the table(s), the verdict, tables and plots on rank 0 (any study type); status.txt says
+    complete once the plots are written."""
     from . import progress, report, results, solver, study, verdict
     guard.raise_on_closed_pipes()  # after PETSc's initialisation (study imports it), which traps SIGPIPE
     solver.forget_read_options()  # _warn_unused_options: this run's solves only
     comm = MPI.COMM_WORLD
     run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
-    if cfg.study_type in ("epsilon_sweep", "total_error"):  # own tables (docs/limit.md)
-        from . import limit
-        return EXIT_OK if limit.run(run_cfg, comm, quiet=quiet) else EXIT_NOT_CONVERGED
-    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet)
+    levels_study = cfg.study_type in results.LEVEL_STUDIES
+    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet and levels_study)
     shown.level = len(done)  # a resumed study starts further on
     if done and comm.rank == 0 and not quiet:
         with guard.stdout_may_close():
             print(f"study {cfg.study}: resuming after level {done[-1].index}")
 
-    def on_level(levels):
-        shown.level_done(watch.level_done(levels))
-        if len(levels) == len(done) + 1 and comm.rank == 0:  # the run's first level: its options were read
+    def on_level(result):
+        shown.level_done(watch.level_done(result))
+        solved = len(list(result))
+        if solved == len(done) + 1 and comm.rank == 0:  # the run's first solve: its options were read
             _warn_unused_options(solver.unused_options([name for name, _ in cfg.solver.petsc_options]),
-                                 levels[-1].index)
+                                 solved - 1)
 
     with guard.Watch(cfg, done, comm) as watch:
-        levels = study.run_study(run_cfg, on_level=on_level, comm=comm,
+        result = study.run_study(run_cfg, on_level=on_level, comm=comm,
                                  monitor=None if verbose or quiet else shown.monitor, done=done)
-        rows = results.table(levels)
-        written = watch.finish(lambda: report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg,
-                                                    cfg.output.digits, plots=cfg.output.plots))
-    summary = verdict.summarize(cfg, levels)
+        summary = verdict.summarize(cfg, result) if levels_study else None
+        text = watch.finish(lambda: _outputs(cfg, result, summary))
     if comm.rank == 0 and not quiet:
         with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
-            print(f"study {cfg.study}: {cfg.output_dir}")
-            print(report.format_table(rows))
-            print(verdict.format_summary(summary))
-            print("wrote " + ", ".join(path.name for path in written))
-    if not summary.met:  # the user's `expect:` block: batch runs gate on it
+            print(text)
+    if summary is not None and not summary.met:  # the user's `expect:` block: batch runs gate on it
         return EXIT_EXPECTATION_NOT_MET
-    return EXIT_OK if all(lv.outcome.converged for lv in levels) else EXIT_NOT_CONVERGED
+    return EXIT_OK if all(solve.outcome.converged for solve in result) else EXIT_NOT_CONVERGED
+
+
+def _outputs(cfg, result, summary):
+    """Write the study's tables and plots (rank 0) and return what the terminal shows."""
+    from . import report, results, verdict
+    if summary is None:
+        named = results.limit_tables(cfg, result)
+        return report.limit_summary(cfg, named, report.write_limit(cfg, result, named))
+    rows = results.table(result)
+    written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
+                           plots=cfg.output.plots)
+    return "\n".join([f"study {cfg.study}: {cfg.output_dir}", report.format_table(rows, cfg),
+                      verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
 
 
 def _warn_unused_options(unused, level):
@@ -144,9 +220,26 @@ def with_monitors(cfg):
 
 
 def _load(args):
-    from . import config
     overrides = list(args.set) + ([f"output.dir={args.output}"] if args.output else [])
-    return config.load(args.config, overrides)
+    return config.load(args.config, overrides, getattr(args, "petsc_options", ()))
+
+
+def init(args):
+    """Print (or write to FILE) the commented config of every key with its default."""
+    from mpi4py import MPI
+    text = config.template()
+    if args.file is None:
+        if MPI.COMM_WORLD.rank == 0:
+            print(text, end="")
+        return EXIT_OK
+    if Path(args.file).exists() and not args.force:
+        return _fail(args.file, ConfigError("", "already exists; use --force to overwrite it"))
+    try:
+        if MPI.COMM_WORLD.rank == 0:
+            Path(args.file).write_text(text)
+    except OSError as err:
+        return _fail(args.file, err)
+    return EXIT_OK
 
 
 def _prepare(cfg, args):

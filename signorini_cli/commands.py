@@ -1,10 +1,12 @@
 """The commands besides `run`: check (resolved config), list (shipped configs), report and compare."""
+import os
+import sys
 from pathlib import Path
 
 import yaml
 from mpi4py import MPI
 
-from . import cli, config, report
+from . import cli, config, plots, report
 from .config import ConfigError
 
 SHIPPED_CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -25,25 +27,42 @@ def check(args):
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return cli._fail(args.config, err)
     if MPI.COMM_WORLD.rank == 0:  # no dolfinx/PETSc import: check stays instant (and `| head` safe)
-        print(f"# {args.config}: valid. Resolved settings, every default filled in:")
-        print(yaml.dump(config.to_dict(cfg), Dumper=_FlowListDumper, sort_keys=False, allow_unicode=True),
-              end="")
-        print(f"# results would go to {cfg.output_dir}/")
+        emit([f"# {args.config}: valid. Resolved settings, every default filled in:",
+              yaml.dump(config.to_dict(cfg), Dumper=_FlowListDumper, sort_keys=False, allow_unicode=True).rstrip("\n"),
+              f"# results would go to {cfg.output_dir}/"])
     return cli.EXIT_OK
 
 
 def list_configs(args):
-    """Every configs/**/*.yaml with its one-line description (or why it does not load)."""
+    """Every configs/**/*.yaml as a path to give `run`, with its one-line description (or why it does
+    not load)."""
     folder = Path(args.folder) if args.folder else shipped_configs()
     if not folder.is_dir():
         return cli._fail(str(folder), OSError("not a folder of configs"))
-    paths = sorted(folder.glob("**/*.yaml"))
-    names = [str(path.relative_to(folder)) for path in paths]
-    width = max(map(len, names), default=0)
+    paths = [_shown_path(path) for path in sorted(folder.glob("**/*.yaml"))]
+    width = max(map(len, paths), default=0)
     if MPI.COMM_WORLD.rank == 0:
-        for name, path in zip(names, paths):
-            print(f"{name:<{width}}  {_description(path)}")
+        emit(f"{path:<{width}}  {_description(path)}" for path in paths)
     return cli.EXIT_OK
+
+
+def _shown_path(path):
+    """The path relative to the working folder when it lies below it, else absolute."""
+    relative = os.path.relpath(path.resolve())
+    return relative if not relative.startswith("..") else str(path.resolve())
+
+
+def emit(lines):
+    """Print the lines to stdout; a reader that stops early (`| head -1`) ends the output quietly: the
+    work is done, the rest of stdout goes to /dev/null (no BrokenPipeError at exit)."""
+    try:
+        for line in lines:
+            print(line)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
 
 
 def shipped_configs():
@@ -66,15 +85,19 @@ def report_study(args):
         digits = args.digits if args.digits is not None else (cfg.output.digits if cfg is not None else 3)
         if digits < 1:
             raise ConfigError("--digits", f"must be >= 1, got {digits}")
+        columns = _columns(args.columns) if args.columns else None
+        figure = {"width": config.length(args.width, "--width") if args.width else None,
+                  "per_norm": args.per_norm}
         written = []
         if MPI.COMM_WORLD.rank == 0:
-            written = report.write(study, cfg, digits, plots=not args.no_plots, folder=args.output)
+            written = report.write(study, cfg, digits, plots=not args.no_plots, folder=args.output,
+                                   columns=columns, figure=figure)
+            table = report.format_table(study.rows, cfg, columns)
     except (ConfigError, OSError) as err:
         return cli._fail(args.path, err)
     if MPI.COMM_WORLD.rank == 0:
-        print(f"study {study.name}: {_levels_done(study, cfg)} from {args.path}")
-        print(report.format_table(study.rows))
-        print(f"wrote into {Path(args.output or study.folder)}: " + ", ".join(p.name for p in written))
+        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
+              f"wrote into {Path(args.output or study.folder)}: " + ", ".join(p.name for p in written)])
     return cli.EXIT_OK
 
 
@@ -98,22 +121,36 @@ def _levels_done(study, cfg):
 def compare(args):
     """Overlay several studies: error vs h and vs time per norm, Newton iterations; a summary table."""
     try:
-        studies = [report.load(path) for path in args.paths]
+        studies = [_load_one(path) for path in args.paths]
+    except _BadStudy as err:  # name the one folder that does not load
+        return cli._fail(err.path, err.cause)
+    try:
         if args.label and len(args.label) != len(studies):
             raise ConfigError("--label", f"give one per study: {len(studies)} studies, {len(args.label)} labels")
         labels = args.label or _labels(studies)
         folder = Path(args.output) if args.output else studies[0].folder.parent / "compare"
         rows = dict(zip(labels, (study.rows for study in studies)))
-        written = []
-        if MPI.COMM_WORLD.rank == 0:
-            from . import plots
-            written = plots.write_comparison(rows, folder)
+        written = plots.write_comparison(rows, folder) if MPI.COMM_WORLD.rank == 0 else []
     except (ConfigError, OSError) as err:
-        return cli._fail(" ".join(args.paths), err)
+        return cli._fail("compare", err)
     if MPI.COMM_WORLD.rank == 0:
-        print(report.summary_table(rows))
-        print(f"wrote into {folder}: " + ", ".join(p.name for p in written))
+        emit([report.summary_table(rows), f"wrote into {folder}: " + ", ".join(p.name for p in written)])
     return cli.EXIT_OK
+
+
+class _BadStudy(OSError):
+    """One study of a comparison that does not load: its path and why."""
+
+    def __init__(self, path, cause):
+        super().__init__(str(cause))
+        self.path, self.cause = path, cause
+
+
+def _load_one(path):
+    try:
+        return report.load(path)
+    except (ConfigError, OSError) as err:
+        raise _BadStudy(path, err) from None
 
 
 def _labels(studies):
@@ -123,3 +160,9 @@ def _labels(studies):
 
 
 COMMANDS = {"check": check, "list": list_configs, "report": report_study, "compare": compare}
+
+
+def _columns(text):
+    """--columns: paper, all, or column names separated by commas."""
+    value = text if text in config.TABLE_COLUMNS else text.split(",")
+    return config.table_columns(value, "--columns")

@@ -179,6 +179,11 @@ def _evaluate(node, variables, functions):
             "/": lambda: left / right, "**": lambda: left ** right}[_BINARY[type(node.op)]]()
 
 
+def math_functions():
+    """The whitelisted functions on Python floats (math: errors raise instead of returning nan)."""
+    return dict(_MATH)
+
+
 def ufl_functions():
     """The whitelisted functions as UFL operators."""
     import ufl

@@ -3,19 +3,19 @@ on rank 0 and distributed with dolfinx.io.gmshio.model_to_mesh. Physical groups,
 decide Γ_C: the group the config's `contact` names; every other boundary facet is Γ_D."""
 import dataclasses
 import logging
-import os
 import signal
+import sys
 from pathlib import Path
 
 import numpy as np
 import ufl
 from mpi4py import MPI
 
-import dolfinx.mesh
 from dolfinx import cpp, fem
 
-from . import files, geometry_files, guard, meshes, refinement
-from .meshes import CONTACT, DIRICHLET
+from . import config, files, geometry_files, guard, refinement
+from .config import ConfigError
+from .domain import CONTACT, domain_of, tag_facets
 
 logger = logging.getLogger(__name__)
 
@@ -60,18 +60,9 @@ def read_level(mesh_cfg, contact, entry, comm=MPI.COMM_WORLD):
     if contact not in groups:
         raise GeometryError(f"{path}: no physical group {contact!r} of dimension {mesh_cfg.dimension - 1} "
                             f"(it has: {', '.join(groups) or 'none'})")
-    tags = tag_boundary(msh, facet_groups.indices[facet_groups.values == groups[contact]])
-    h, h_min = meshes.cell_sizes(msh)
-    return meshes.Domain(msh, tags, h, h_min, msh.topology.index_map(msh.topology.dim).size_global)
-
-
-def tag_boundary(msh, contact_facets):
-    """CONTACT on the boundary facets among `contact_facets`, DIRICHLET on every other boundary facet."""
-    fdim = msh.topology.dim - 1
-    msh.topology.create_connectivity(fdim, msh.topology.dim)
-    boundary = dolfinx.mesh.exterior_facet_indices(msh.topology)
-    values = np.where(np.isin(boundary, contact_facets), CONTACT, DIRICHLET).astype(np.int32)
-    return dolfinx.mesh.meshtags(msh, fdim, boundary.astype(np.int32), values)
+    contact_facets = facet_groups.indices[facet_groups.values == groups[contact]]
+    tags = tag_facets(msh, lambda boundary: np.isin(boundary, contact_facets))
+    return domain_of(msh, tags, msh.topology.index_map(msh.topology.dim).size_global)
 
 
 # --- gmsh on rank 0 ------------------------------------------------------------------------------
@@ -103,6 +94,43 @@ def generate(geo, size, dim, target):
         gmsh.write(str(target))
     finally:
         _finalize(gmsh)
+
+
+def geometry_measure(geo, dim, comm=MPI.COMM_WORLD):
+    """|Ω| of a .geo geometry (area in 2-D, volume in 3-D), summed over a coarse gmsh mesh of it (cells a
+    tenth of its bounding box's diameter) on rank 0: cheap, whatever the geometry's kernel."""
+    def work():
+        gmsh = _import_gmsh()
+        gmsh.initialize()
+        try:
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.open(str(geo))
+            box = np.array(gmsh.model.getBoundingBox(-1, -1))
+            gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+            gmsh.option.setNumber("Mesh.MeshSizeMax", np.linalg.norm(box[3:] - box[:3]) / 10)
+            gmsh.model.mesh.generate(dim)
+            return simplex_measure(gmsh, dim)
+        finally:
+            _finalize(gmsh)
+    return _on_rank0(comm, work, f"measuring {geo}")
+
+
+def simplex_measure(gmsh, dim):
+    """Total area (dim 2) or volume (3) of the linear simplices of gmsh's current mesh."""
+    tags, coords, _ = gmsh.model.mesh.getNodes()
+    x = np.zeros((int(tags.max()) + 1 if len(tags) else 0, 3))
+    x[tags.astype(np.int64)] = coords.reshape(-1, 3)
+    total = 0.0
+    for kind, _, nodes in zip(*gmsh.model.mesh.getElements(dim)):
+        if kind not in (2, 4):  # 3-node triangles, 4-node tetrahedra
+            continue
+        cells = x[nodes.astype(np.int64).reshape(-1, dim + 1)]
+        edges = cells[:, 1:] - cells[:, :1]
+        if dim == 2:
+            total += np.linalg.norm(np.cross(edges[:, 0], edges[:, 1]), axis=1).sum() / 2
+        else:
+            total += np.abs(np.linalg.det(edges)).sum() / 6
+    return float(total)
 
 
 def read_msh(path, gdim, comm=MPI.COMM_WORLD):
@@ -190,7 +218,6 @@ def contact_quasi_uniformity(domain):
 def mesh_levels(cfg, comm=MPI.COMM_WORLD):
     """Mesh a gmsh config's levels (the base mesh with refine: uniform) into its cache, yielding
     (cache file, generated) per mesh; what gmsh cannot mesh is a ConfigError naming mesh.geometry."""
-    from .config import ConfigError
     geo = geometry_files.geometry_path(cfg.mesh.geometry)
     for size in cfg.mesh.sizes:
         try:
@@ -202,7 +229,6 @@ def mesh_levels(cfg, comm=MPI.COMM_WORLD):
 def cache_configs(paths, comm=MPI.COMM_WORLD):
     """mesh_levels of each gmsh config: yields (config path, cache file, generated). Other mesh kinds
     need nothing."""
-    from . import config
     for path in paths:
         cfg = config.load(path)
         if cfg.mesh.kind == "gmsh":
@@ -211,8 +237,6 @@ def cache_configs(paths, comm=MPI.COMM_WORLD):
 
 def main(argv=None):
     """`python -m signorini_cli.geometries CONFIG...` (make meshes): fill the mesh cache."""
-    import sys
-    from .config import ConfigError
     try:
         for path, msh, generated in cache_configs(sys.argv[1:] if argv is None else argv):
             print(f"{'meshed' if generated else 'cached'}  {msh}  ({path})")

@@ -61,3 +61,26 @@ def cache_file(cache_dir, geo, size):
     digest = hashlib.sha256(Path(geo).read_bytes())
     digest.update(f"size={size!r};meshing={MESHING_VERSION}".encode())
     return Path(cache_dir) / f"{Path(geo).stem}-h{size:g}-{digest.hexdigest()[:16]}.msh"
+
+
+def msh_node_count(path, chunk=1 << 20):
+    """The number of nodes a .msh file (2.2 or 4.1, text or binary) declares in its $Nodes header, read
+    without its node or element data (a few chunks up to $Nodes); None when there is no such header."""
+    with open(path, "rb") as f:
+        head = f.read(max(chunk, 256))  # $MeshFormat's three numbers come first
+        fmt = re.match(rb"\$MeshFormat\s+(\d+)\.?\d*\s+(\d)\s+(\d)", head)
+        if fmt is None:
+            return None
+        while (at := head.find(b"$Nodes\n")) < 0 or len(head) < at + 80:
+            more = f.read(chunk)
+            if not more:
+                break
+            head = head[-80:] + more if at < 0 else head + more  # keep a header cut between two chunks
+    if at < 0:
+        return None
+    body = head[at + len(b"$Nodes\n"):]
+    version, binary, size = int(fmt.group(1)), fmt.group(2) == b"1", int(fmt.group(3))
+    if version >= 4 and binary:  # numEntityBlocks numNodes minNodeTag maxNodeTag as size_t, little-endian
+        return int.from_bytes(body[size:2 * size], "little")
+    numbers = body.split(b"\n", 1)[0].split()  # 4.1 text: blocks, nodes, min, max; 2.2: nodes alone
+    return int(numbers[1] if version >= 4 else numbers[0]) if numbers else None

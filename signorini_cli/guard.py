@@ -150,16 +150,18 @@ def _first_line(err):
     return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
 
 
-def status(cfg, levels, final=True):
+def status(cfg, result, final=True):
     """'complete'; 'failed at level k: REASON' when a level did not converge and on_failure is stop;
-    else 'running (k of n levels done)', also with every level done while tables and figures are
-    still being written (final=False)."""
-    total = len(cfg.mesh.levels)
-    if levels and not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
-        return f"failed at level {levels[-1].index}: {levels[-1].outcome.reason}"
-    if len(levels) == total and final:
+    else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels), also with every
+    level done while tables and figures are still being written (final=False)."""
+    solves = list(result)
+    unit = "levels" if cfg.study_type in results.LEVEL_STUDIES else "solves"
+    last = solves[-1] if solves else None
+    if unit == "levels" and last and not last.outcome.converged and cfg.solver.on_failure == "stop":
+        return f"failed at level {last.index}: {last.outcome.reason}"
+    if len(solves) == cfg.solves and final:
         return "complete"
-    return f"running ({len(levels)} of {total} levels done)"
+    return f"running ({len(solves)} of {cfg.solves} {unit} done)"
 
 
 class Watch:
@@ -185,12 +187,12 @@ class Watch:
         with deferred():
             start = time.perf_counter()
             rows = results_write(self.cfg, levels, self.comm, final=False)
-            self.levels = list(levels)
-            if len(self.levels) > self.recorded:  # the new level's t_output: its record written
+            self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
+            if isinstance(self.levels, list) and len(self.levels) > self.recorded:  # the new level's t_output
                 timings = self.levels[-1].timings
                 timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
                 self.recorded = len(self.levels)
-        fault_hook(len(self.levels), self.comm)
+        fault_hook(len(list(self.levels)), self.comm)
         return rows
 
     def finish(self, draw):
@@ -219,8 +221,8 @@ class Watch:
         """The status a study ending with `err` leaves."""
         if not status(self.cfg, self.levels, final=False).startswith("running"):
             return status(self.cfg, self.levels)  # stopped by on_failure: stop before it came
-        k = len(self.levels)
-        where = (f"at level {k}" if k < len(self.cfg.mesh.levels)
+        k = len(list(self.levels))
+        where = (f"at level {k}" if k < self.cfg.solves
                  else f"while writing tables and figures (all {k} levels done)")
         if isinstance(err, Interrupted):
             return f"interrupted {where}"
@@ -230,7 +232,7 @@ class Watch:
         """What the one line on stderr adds: where the study stood and how to go on."""
         if state.startswith(("interrupted ", "failed ")):
             where = state.split(" ", 1)[1].split(":")[0]
-            return (f" {where}: the {len(self.levels)} finished level(s) are in {self.cfg.output_dir}; "
+            return (f" {where}: the {len(list(self.levels))} finished level(s) are in {self.cfg.output_dir}; "
                     "continue with --resume")
         return f" as the study ended ({state}): results in {self.cfg.output_dir}"
 
@@ -238,7 +240,8 @@ class Watch:
         """Write the results with `state` from this rank alone: the others may be gone or waiting. When
         they cannot be written (a full disk), status.txt alone, in place."""
         try:
-            results.write_files(self.cfg, self.levels, results.table(self.levels), self.comm.size, state)
+            rows = results.main_table(self.cfg, self.levels)
+            results.write_files(self.cfg, self.levels, rows, self.comm.size, state)
         except OSError as err:
             logger.debug("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
             try:

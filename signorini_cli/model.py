@@ -5,7 +5,7 @@ import ufl
 from dolfinx import fem
 
 from . import expressions
-from .meshes import CONTACT
+from .meshes import CONTACT, DIRICHLET
 
 QUADRATURE_DEGREE = 6  # data terms (sin, exp ...) and the kinked [u_h]_+^alpha on Γ_C
 
@@ -47,7 +47,15 @@ def exact_solution(cfg, msh, eps):
     """u_ex as UFL in the mesh's spatial coordinates, or None."""
     if cfg.problem.exact is None:
         return None
-    return cfg.problem.exact(_variables(msh, eps), expressions.ufl_functions())
+    return on_mesh(cfg.problem.exact(_variables(msh, eps), expressions.ufl_functions()), msh)
+
+
+def on_mesh(value, msh):
+    """value as a UFL expression on msh: a constant ("5", "0*x", or f = -Δu of one) has no domain in
+    UFL, which then can neither differentiate it nor build a form from it: make it a dolfinx Constant."""
+    if ufl.domain.extract_domains(ufl.as_ufl(value)):
+        return value
+    return fem.Constant(msh, float(value))
 
 
 def data(cfg, msh, eps, u_exact, n):
@@ -74,7 +82,7 @@ def forms(cfg, domain, u_h, eps):
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags, metadata=metadata)(CONTACT)
     u_exact = exact_solution(cfg, msh, eps)
     f, g = data(cfg, msh, eps, u_exact, ufl.FacetNormal(msh))
-    h = fem.Constant(msh, domain.h)
+    f, h = on_mesh(f, msh), fem.Constant(msh, domain.h)
     q = compliance(u_h, cfg.alpha, cfg.positive_part, h, eps)
     # P1 gradients are constant on (affine) cells: the stiffness is exact with UFL's own degree (0)
     stiffness = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * ufl.dx(domain=msh)
@@ -89,3 +97,12 @@ def _variables(msh, eps):
     x = ufl.SpatialCoordinate(msh)
     names = ("x", "y", "z")[:msh.geometry.dim]
     return dict(zip(names, x), eps=eps)
+
+
+def dirichlet_condition(V, domain, u_exact):
+    """u = u_ex on Γ_D for manufactured scenes (u_ex vanishes there in the paper's setting), else 0."""
+    dofs = fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, domain.facets(DIRICHLET))
+    u_D = fem.Function(V)
+    if u_exact is not None:
+        u_D.interpolate(fem.Expression(u_exact, V.element.interpolation_points()))
+    return fem.dirichletbc(u_D, dofs)

@@ -49,8 +49,7 @@ def fitted(h, errors, valid, k=3, log_factor=False):
 
 
 # --- the paper's proven rates ----------------------------------------------------------------------
-# eps = theta h^p: the law's exponent p decides which of the paper's hypotheses on eps hold.
-LAW_EXPONENTS = {"theta_h": 1.0, "theta_sqrt_h": 0.5, "constant": 0.0}
+# eps = theta h^p: the law's exponent p (config.Epsilon.p) decides which of the paper's hypotheses hold.
 EPS_CONDITIONS = {
     "any eps": lambda p: True,
     "h/eps bounded (eps >~ h)": lambda p: p <= 1,
@@ -117,11 +116,6 @@ class Expected:
     reference: str = ""
     conditions: str = ""
     reason: str = ""
-
-
-def law_exponent(epsilon):
-    """p in eps = theta h^p for an epsilon config."""
-    return epsilon.exponent if epsilon.law == "power" else LAW_EXPONENTS[epsilon.law]
 
 
 def base_norm(norm):

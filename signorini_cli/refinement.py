@@ -7,14 +7,12 @@ not moved onto a curved boundary: that is what keeps the family nested), and its
 inside it (barycentric coordinates >= 1/6). The parent's CONTACT facets are gathered on every rank,
 so the result does not depend on how either mesh is partitioned."""
 import numpy as np
-from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 import dolfinx.mesh
 from dolfinx import cpp
 
-from . import meshes
-from .meshes import CONTACT, DIRICHLET
+from .domain import CONTACT, domain_of, tag_facets
 
 INSIDE_TOL = 1e-8  # relative; refined centroids are >= 1/6 inside their parent facet, rounding ~1e-16
 
@@ -24,16 +22,11 @@ def refine(domain):
     parent = domain.mesh
     parent.topology.create_entities(1)  # refine needs the edges
     child = dolfinx.mesh.refine(parent)
-    fdim = child.topology.dim - 1
-    child.topology.create_connectivity(fdim, fdim + 1)
-    boundary = dolfinx.mesh.exterior_facet_indices(child.topology)
     parent_contact = domain.facet_tags.indices[domain.facet_tags.values == CONTACT]
     contact_facets = np.vstack(parent.comm.allgather(facet_vertices(parent, parent_contact)))
-    inside = in_simplices(facet_vertices(child, boundary).mean(axis=1), contact_facets)
-    values = np.where(inside, CONTACT, DIRICHLET).astype(np.int32)
-    tags = dolfinx.mesh.meshtags(child, fdim, boundary.astype(np.int32), values)
-    h, h_min = meshes.cell_sizes(child)
-    return meshes.Domain(child, tags, h, h_min, child.topology.index_map(fdim + 1).size_global)
+    tags = tag_facets(child, lambda boundary: in_simplices(facet_vertices(child, boundary).mean(axis=1),
+                                                           contact_facets))
+    return domain_of(child, tags, child.topology.index_map(child.topology.dim).size_global)
 
 
 def facet_vertices(msh, facets):

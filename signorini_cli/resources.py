@@ -1,6 +1,13 @@
-"""Resource limits: the memory the finest level needs, estimated before any mesh is built."""
+"""Resource limits: the memory the finest level needs, estimated before any mesh is built, for every
+mesh kind: built-in grids from N in closed form, gmsh geometries from their measure and the target size
+(or the cached mesh's node count), .msh files from the node count in their header; times 4^r (2-D) or
+8^r (3-D) for r uniform refinements."""
+import os
 from pathlib import Path
 
+from mpi4py import MPI
+
+from . import geometries, geometry_files
 from .config import ConfigError
 
 # Peak memory (ru_maxrss) of one serial level on this machine, minus the 94 MB after the imports:
@@ -10,11 +17,17 @@ from .config import ConfigError
 BYTES_PER_DOF = 1000
 BYTES_PER_NONZERO = 110
 BYTES_PER_RANK = 100 * 2**20  # Python, dolfinx, PETSc and MPI loaded, before any mesh
+# Unstructured P1 meshes: ~6 neighbours per vertex in 2-D, ~14 in 3-D (Euler: E ≈ 3V, E ≈ 7V).
+ROW_NONZEROS = {2: 7, 3: 15}
+# gmsh vertices per |Ω| / size^d (Mesh.MeshSizeMax = size): 2/sqrt(3) = 1.155 for equilateral triangles,
+# measured 1.21, 1.20 at size 0.02 (unit square, half disk); in 3-D measured 0.92, 0.88 at size 0.05 (unit
+# cube, half ball), falling with the size. The boundary adds more on coarse meshes, which fit anyway.
+GMSH_DOFS_PER_MEASURE = {2: 1.15, 3: 0.85}
 
 
 def level_size(mesh_cfg, n):
-    """(dofs, Jacobian nonzeros) of P1 on the level with n cells per side; None for a mesh kind
-    whose size is not known before it is built."""
+    """(dofs, Jacobian nonzeros) of P1 on the built-in level with n cells per side; None for a mesh
+    kind whose size needs estimate_size."""
     if mesh_cfg.kind == "unit_square":
         if mesh_cfg.diagonal == "crossed":  # cell centres are vertices too: 8 neighbours at corners, 4 at centres
             return (n + 1)**2 + n**2, 9 * (n + 1)**2 + 5 * n**2
@@ -30,34 +43,92 @@ def needed_bytes(dofs, nonzeros, ranks):
 
 
 def check_memory(cfg, comm):
-    """ConfigError on every rank when the finest level (with its reference solution, for a data-only
-    scene) would need more memory than the nodes of `comm` have available. --force skips the check."""
-    sizes = [level_size(cfg.mesh, n) for n in peak_levels(cfg)]
-    if None in sizes:
+    """ConfigError (naming the key of the levels) on every rank when the finest level, with its reference
+    solution for a data-only scene, would need more memory than the nodes of `comm` have available.
+    --force skips the check."""
+    peak = peak_meshes(cfg, comm)
+    if peak is None:
         return
-    dofs, nonzeros = sum(d for d, _ in sizes), sum(z for _, z in sizes)
+    dofs, nonzeros = sum(d for _, d, _ in peak), sum(z for _, _, z in peak)
     need, have = needed_bytes(dofs, nonzeros, comm.size), available_on_nodes(comm)
     if need > have:
-        what = ("the finest level" if len(sizes) == 1 else "the finest level with its reference solution")
-        cells = " and ".join(f"N={n}" for n in peak_levels(cfg))
-        raise ConfigError("mesh.refinements", f"{what} ({cells}: {dofs:,} dofs, {nonzeros:,} Jacobian nonzeros) "
-                                              f"needs about {_gb(need)} of memory, more than the {_gb(have)} "
-                                              "available; use --force to run it anyway")
+        what = "the finest level" if len(peak) == 1 else "the finest level with its reference solution"
+        meshes = " and ".join(label for label, _, _ in peak)
+        raise ConfigError(f"mesh.{cfg.mesh.level_key}",
+                          f"{what} ({meshes}: {dofs:,} dofs, {nonzeros:,} Jacobian nonzeros) needs about "
+                          f"{_gb(need)} of memory, more than the {_gb(have)} available; use --force to run it anyway")
 
 
-def peak_levels(cfg):
-    """Cells per side of the meshes alive at the peak: the finest level, and for a data-only scene
-    the reference solution's mesh, verification.reference_refinements times finer."""
-    finest = cfg.mesh.levels[-1]  # gmsh/file levels: no size known before meshing
+def peak_meshes(cfg, comm):
+    """[(label, dofs, nonzeros)] of the meshes alive at the peak: the largest level, and for a data-only
+    scene the reference mesh, verification.reference_refinements uniform refinements finer; None when
+    a size cannot be told before meshing (a geometry gmsh cannot read: reported when it meshes)."""
+    extra = reference_refinements(cfg)
+    if cfg.mesh.kind in ("unit_square", "unit_cube"):
+        finest = cfg.mesh.levels[-1]
+        return [(f"N={n}", *level_size(cfg.mesh, n)) for n in [finest] + ([finest * 2**extra] if extra else [])]
+    sources = level_sources(cfg.mesh)
+    base = base_dofs(cfg.mesh, sorted({source for source, _ in sources}, key=str), comm)
+    if base is None:
+        return None
+    grow = 2 ** cfg.mesh.dimension
+    source, r = max(sources, key=lambda level: base[level[0]] * grow ** level[1])
+    dofs = base[source]
+    rows = ROW_NONZEROS[cfg.mesh.dimension]
+    return [(source_label(source, k), dofs * grow**k, rows * dofs * grow**k) for k in [r] + ([r + extra] if extra else [])]
+
+
+def reference_refinements(cfg):
+    """The uniform refinements of the finest level that a data-only scene's reference solution lives on."""
     verification = getattr(cfg, "verification", None)
-    if cfg.problem.exact is None and verification is not None and verification.reference_refinements > 0:
-        return [finest, finest * 2**verification.reference_refinements]
-    return [finest]
+    if cfg.problem.exact is None and verification is not None:
+        return verification.reference_refinements
+    return 0
+
+
+def level_sources(mesh_cfg):
+    """(gmsh size or .msh path, uniform refinements of it) for every level of a gmsh/file family."""
+    if mesh_cfg.refine == "uniform":
+        return [((mesh_cfg.sizes or mesh_cfg.path)[0], r) for r in mesh_cfg.levels]
+    return [(entry, 0) for entry in mesh_cfg.levels]
+
+
+def base_dofs(mesh_cfg, sources, comm):
+    """{source: P1 dofs} of the meshes of gmsh sizes (a cache entry's node count, else |Ω| / size^d times
+    the vertex density) or of .msh paths (the node count each header declares); None if one is unknown."""
+    if mesh_cfg.kind == "file":
+        counts = {path: _node_count(Path(path)) for path in sources}
+        return None if None in counts.values() else counts
+    geo = geometry_files.geometry_path(mesh_cfg.geometry)
+    if not geo.is_file():
+        return None
+    counts = {size: _node_count(geometry_files.cache_file(mesh_cfg.cache, geo, size)) for size in sources}
+    if None in counts.values():
+        try:
+            measure = geometries.geometry_measure(geo, mesh_cfg.dimension, comm)
+        except geometries.GeometryError:
+            return None
+        density = GMSH_DOFS_PER_MEASURE[mesh_cfg.dimension] * measure
+        counts = {size: count or round(density / size**mesh_cfg.dimension) for size, count in counts.items()}
+    return counts
+
+
+def source_label(source, refinements):
+    """'size 0.0001' or the .msh file's name, with ' refined r times' when r > 0."""
+    label = f"size {source:g}" if isinstance(source, (int, float)) else Path(source).name
+    return label + (f" refined {refinements} times" if refinements else "")
+
+
+def _node_count(path):
+    """The node count of a .msh file's header, None when there is no such (readable) file."""
+    try:
+        return geometry_files.msh_node_count(path) if path.is_file() else None
+    except (OSError, ValueError):
+        return None
 
 
 def available_on_nodes(comm):
     """Available memory summed over the nodes `comm` runs on (read once per node, the same on all ranks)."""
-    from mpi4py import MPI
     node = comm.Split_type(MPI.COMM_TYPE_SHARED)
     mine = available_bytes() if node.rank == 0 else 0
     node.Free()
@@ -68,7 +139,6 @@ def available_bytes():
     """This machine's available memory (MemAvailable, else free pages), capped by a cgroup limit."""
     free = _meminfo("MemAvailable")
     if free is None:
-        import os
         free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     room = _cgroup_room()
     return free if room is None else min(free, room)

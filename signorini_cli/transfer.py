@@ -1,15 +1,21 @@
 """Moving a P1 function between meshes of one family (0.5.2 cannot interpolate across meshes).
 
-The target's owned dof points are gathered on every rank, each rank evaluates the source where
-its own cells contain them, and the lowest such rank's value wins (two allreduces). For nested
-meshes every target vertex lies in a source cell on which the source is affine, so the transfer
-is exact for P1. A source on the built-in Kuhn grid of the unit square ('right' diagonal) or cube
-takes a fast path: its vertex values are gathered into the grid on every rank and the P1 interpolant
-is evaluated in closed form (the same values, no search)."""
+No rank ever holds a mesh-sized array of another rank's data. Each rank sends its owned target dof
+points only to the ranks whose owned source cells' bounding box contains them; those evaluate the
+source where their cells contain the points and send the values back, and the lowest such rank's value
+wins. For nested meshes every target vertex lies in a source cell on which the source is affine, so the
+transfer is exact for P1. Points no source cell contains (a curved boundary) are an error, or with
+`extend` take the affine extension from the closest cell: only those few points go to every rank.
+A source on the built-in Kuhn grid of the unit square ('right' diagonal) or cube takes a fast path:
+each rank receives the source's vertex values on the grid layers its target points need, and the P1
+interpolant is evaluated in closed form (the same values, no search)."""
 import numpy as np
 from mpi4py import MPI
 
 from dolfinx import fem, geometry
+
+CHUNK = 2**16  # target points interpolated at once on the Kuhn path (152 MiB of temporaries at 1M in one go)
+BOX_TOL = 1e-8  # relative padding of a rank's bounding box: its points on the box's faces count as inside
 
 
 def transfer(u_source, V_target, extend=False):
@@ -17,32 +23,75 @@ def transfer(u_source, V_target, extend=False):
     A target point outside the source mesh is an error, or with `extend` (curved boundaries of a
     non-nested family: an initial guess, not a measurement) takes the affine extension of u_source
     from its closest cell."""
-    comm = V_target.mesh.comm
     n = kuhn_grid(u_source.function_space.mesh)
     moved = kuhn_transfer(u_source, n, V_target) if n else None
     if moved is not None:
         return moved
-    index_map = V_target.dofmap.index_map
-    n_owned = index_map.size_local
+    n_owned = V_target.dofmap.index_map.size_local
     points = V_target.tabulate_dof_coordinates()[:n_owned]
-    counts = comm.allgather(n_owned)
-    all_points = np.vstack(comm.allgather(points)) if sum(counts) else np.zeros((0, 3))
-    values, found = evaluate(u_source, all_points)
-    owner = np.where(found, comm.rank, comm.size).astype(np.int32)
-    comm.Allreduce(MPI.IN_PLACE, owner, op=MPI.MIN)
-    if np.any(owner == comm.size) and extend:
-        values, owner = extend_outside(u_source, all_points, values, owner)
-    if np.any(owner == comm.size):
-        missing = all_points[owner == comm.size][0]
-        raise ValueError(f"transfer: {np.count_nonzero(owner == comm.size)} target points lie outside "
-                         f"the source mesh, e.g. {missing}")
+    values, found = evaluate_routed(u_source, points)
+    missing = np.flatnonzero(~found)
+    if extend:
+        values[missing] = extend_everywhere(u_source, points[missing])
+    else:
+        refuse_outside(V_target.mesh.comm, points[missing])
+    u_target = fem.Function(V_target)
+    u_target.x.array[:n_owned] = values
+    u_target.x.scatter_forward()
+    return u_target
+
+
+def evaluate_routed(u, points):
+    """(values, found) of u at this rank's `points`, evaluated by the ranks whose owned cells' bounding
+    box holds them (two alltoalls of local size); the lowest rank that finds a point gives its value."""
+    comm = u.function_space.mesh.comm
+    boxes = comm.allgather(owned_box(u.function_space.mesh))
+    routes = [np.flatnonzero(((points >= lo) & (points <= hi)).all(axis=1)) for lo, hi in boxes]
+    received = comm.alltoall([points[route] for route in routes])
+    values, found = evaluate(u, np.vstack(received) if received else np.zeros((0, 3)))
+    cuts = np.cumsum([len(p) for p in received])[:-1]
+    answers = comm.alltoall(list(zip(np.split(values, cuts), np.split(found, cuts))))
+    out, hit = np.zeros(len(points)), np.zeros(len(points), dtype=bool)
+    for route, (vals, ok) in reversed(list(zip(routes, answers))):  # the lowest rank is written last
+        out[route[ok]], hit[route[ok]] = vals[ok], True
+    return out, hit
+
+
+def owned_box(msh):
+    """(lower, upper) corners of the bounding box of this rank's owned cells, padded by BOX_TOL of its
+    size (empty: a box nothing is inside)."""
+    tdim = msh.topology.dim
+    owned = msh.topology.index_map(tdim).size_local
+    x = msh.geometry.x[np.unique(msh.geometry.dofmap.array.reshape(-1, tdim + 1)[:owned])]
+    if not len(x):
+        return np.full(3, np.inf), np.full(3, -np.inf)
+    lower, upper = x.min(axis=0), x.max(axis=0)
+    pad = BOX_TOL * max(np.max(upper - lower), 1.0)
+    return lower - pad, upper + pad
+
+
+def refuse_outside(comm, outside):
+    """ValueError on every rank when some rank has target points outside the source mesh."""
+    counts = comm.allgather((len(outside), outside[0] if len(outside) else None))
+    total = sum(count for count, _ in counts)
+    if total:
+        example = next(point for count, point in counts if count)
+        raise ValueError(f"transfer: {total} target points lie outside the source mesh, e.g. {example}")
+
+
+def extend_everywhere(u, points):
+    """The affine extension of u at this rank's `points` (outside every source cell) from the closest
+    cell over all ranks: these boundary points alone are gathered on every rank."""
+    comm = u.function_space.mesh.comm
+    counts = comm.allgather(len(points))
+    if not sum(counts):
+        return np.zeros(0)
+    every = np.vstack(comm.allgather(points))
+    values, owner = extend_outside(u, every, np.zeros(len(every)), np.full(len(every), comm.size, np.int32))
     values = np.where(owner == comm.rank, values, 0.0)
     comm.Allreduce(MPI.IN_PLACE, values, op=MPI.SUM)
     start = sum(counts[:comm.rank])
-    u_target = fem.Function(V_target)
-    u_target.x.array[:n_owned] = values[start:start + n_owned]
-    u_target.x.scatter_forward()
-    return u_target
+    return values[start:start + len(points)]
 
 
 def evaluate(u, points):
@@ -50,6 +99,8 @@ def evaluate(u, points):
     msh = u.function_space.mesh
     tdim = msh.topology.dim
     n_cells = msh.topology.index_map(tdim).size_local
+    if not len(points) or not n_cells:
+        return np.zeros(len(points)), np.zeros(len(points), dtype=bool)
     tree = geometry.BoundingBoxTree(msh, tdim, np.arange(n_cells, dtype=np.int32))
     colliding = geometry.compute_colliding_cells(msh, geometry.compute_collisions(tree, points), points)
     first, end = colliding.offsets[:-1], colliding.offsets[1:]
@@ -117,7 +168,8 @@ def kuhn_grid(msh):
 
 def kuhn_transfer(u_source, n, V_target):
     """u_source (P1 on the Kuhn grid with n cells per side) at V_target's dofs, owned and ghost; None
-    when a target dof lies outside [0, 1]^d, the grid's domain (on any rank)."""
+    when a target dof lies outside [0, 1]^d, the grid's domain (on any rank). Each rank receives the
+    source's grid values on the layers (last axis) its targets need, from the ranks that own them."""
     comm, tdim = V_target.mesh.comm, V_target.mesh.topology.dim
     targets = V_target.tabulate_dof_coordinates()[:, :tdim]
     if not comm.allreduce(bool(np.all((targets > -1e-12) & (targets < 1 + 1e-12))), op=MPI.LAND):
@@ -125,17 +177,31 @@ def kuhn_transfer(u_source, n, V_target):
     V = u_source.function_space
     owned = V.dofmap.index_map.size_local
     points = np.rint(V.tabulate_dof_coordinates()[:owned, :tdim] * n).astype(np.int64)
-    index = points @ (n + 1) ** np.arange(tdim)
-    grid = np.zeros((n + 1) ** tdim)
-    for where, values in zip(comm.allgather(index), comm.allgather(u_source.x.array[:owned])):
-        grid[where] = values
+    index, layer = points @ (n + 1) ** np.arange(tdim), (n + 1) ** (tdim - 1)
+    values = u_source.x.array[:owned]
+    wanted = comm.allgather(needed_layers(targets, n))
+    sent = [(index[m], values[m]) for m in ((points[:, -1] >= lo) & (points[:, -1] <= hi) for lo, hi in wanted)]
+    lo, hi = wanted[comm.rank]
+    grid = np.zeros(max(hi - lo + 1, 0) * layer)
+    for where, vals in comm.alltoall(sent):
+        grid[where - lo * layer] = vals
     u_target = fem.Function(V_target)
-    u_target.x.array[:] = kuhn_interpolate(grid, n, targets)
+    for start in range(0, len(targets), CHUNK):  # in chunks: a dozen temporaries per point, not per mesh
+        u_target.x.array[start:start + CHUNK] = kuhn_interpolate(grid, n, targets[start:start + CHUNK], lo * layer)
     return u_target
 
 
-def kuhn_interpolate(grid, n, points):
-    """The P1 interpolant of grid values on the Kuhn triangulation at `points` in [0, 1]^d: in the cube
+def needed_layers(points, n):
+    """(first, last) grid layer along the last axis that kuhn_interpolate reads at `points` ((0, -1): none)."""
+    if not len(points):
+        return 0, -1
+    corner = np.minimum(np.floor(np.clip(points[:, -1] * n, 0, n)), n - 1).astype(np.int64)
+    return int(corner.min()), int(corner.max()) + 1
+
+
+def kuhn_interpolate(grid, n, points, offset=0):
+    """The P1 interpolant of grid values on the Kuhn triangulation at `points` in [0, 1]^d (grid[k] is the
+    value at grid point k + offset, numbered x fastest): in the cube
     of corner c, with local coordinates t sorted as t_s1 >= ... >= t_sd, the simplex is the chain
     c, c + e_s1, c + e_s1 + e_s2, ... and the barycentric weights are 1 - t_s1, t_s1 - t_s2, ..., t_sd."""
     d = points.shape[1]
@@ -146,7 +212,7 @@ def kuhn_interpolate(grid, n, points):
     t_sorted = np.take_along_axis(t, order, axis=1)
     weights = -np.diff(np.hstack([np.ones((len(t), 1)), t_sorted, np.zeros((len(t), 1))]), axis=1)
     strides = (n + 1) ** np.arange(d)
-    vertex = corner @ strides
+    vertex = corner @ strides - offset
     value = weights[:, 0] * grid[vertex]
     for k in range(d):
         vertex = vertex + strides[order[:, k]]

@@ -117,7 +117,7 @@ def expected(cfg, norm):
     if not cfg.verification.regular:  # the user says the paper's regularity hypothesis fails
         return rates.Expected(None, reason="the paper's rates assume u in W^{2,alpha+1}; this scene's solution "
                                            "is singular (verification.regular: false, Remark 3.4)")
-    p = rates.law_exponent(cfg.epsilon)
+    p = cfg.epsilon.p
     if norm.startswith("diff_") and p != 0:
         return rates.Expected(None, reason="successive levels have different eps, so their difference "
                                            "contains u_eps(h) - u_eps(h/2): no discretisation rate applies")

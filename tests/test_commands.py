@@ -1,4 +1,7 @@
 """check, list, report and compare from the command line; run's --quiet and --verbose."""
+import subprocess
+import sys
+
 import pytest
 import yaml
 
@@ -42,7 +45,7 @@ def test_check_applies_set_and_output(tmp_path, capsys):
 @pytest.mark.parametrize("override, message", [
     pytest.param("alpha=0", "alpha: must be >= 1, got 0", id="range"),
     pytest.param("epsilon.law=thetah", "epsilon.law: 'thetah' is not one of theta_h", id="choice"),
-    pytest.param("solver.rtl=1e-8", "solver.rtl: unknown key in solver (did you mean 'rtol'?)", id="typo"),
+    pytest.param("solver.rtl=1e-8", "solver.rtl: unknown key in solver (did you mean 'solver.rtol'?)", id="typo"),
     pytest.param("alpha.x=1", "alpha: is not a mapping, cannot set a sub-key", id="not-mapping"),
     pytest.param("alpha", "--set: expected KEY=VALUE, got 'alpha'", id="no-equals"),
     pytest.param("output.plots=maybe", "output.plots: must be true or false, got str 'maybe'", id="bool"),
@@ -64,8 +67,9 @@ def test_list_shows_descriptions(tmp_path, capsys):
     (tmp_path / "bad.yaml").write_text("study: x\n")
     assert cli.main(["list", str(tmp_path)]) == cli.EXIT_OK
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].startswith("bad.yaml") and "(invalid: mesh: missing required key)" in lines[0]
-    assert lines[1].split(None, 1) == ["paper/a.yaml", "first study"]
+    # paths that `run` takes: tmp_path lies outside the working folder, so absolute
+    assert lines[0].startswith(f"{tmp_path}/bad.yaml") and "(invalid: mesh: missing required key)" in lines[0]
+    assert lines[1].split(None, 1) == [f"{tmp_path}/paper/a.yaml", "first study"]
 
 
 def test_list_shipped_configs(capsys):
@@ -94,9 +98,10 @@ def test_report_partial_study(make_config, capsys):
     assert cli.main(["report", str(folder), "--digits", "2"]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert out.startswith("study t: 2 of 3 levels (partial study)")
-    assert "rate_L2" in out and "wrote into" in out
+    assert out.splitlines()[2].split()[-2:] == ["error", "rate"] and "wrote into" in out
     table = (folder / "rates.md").read_text().splitlines()
-    assert len(table) == 1 + 2 + 2 and table[-1].startswith("| 8 | 1.77e-01 |")  # comment, header, 2 levels
+    # comment, header, rule, 2 levels; h = 1.41/N is left out, so ε (= h) follows N
+    assert len(table) == 1 + 2 + 2 and table[-1].startswith("| 8 | 1.77e-01 |")
     assert r"\toprule" in (folder / "rates.tex").read_text()
     for name in ("convergence", "work_precision", "newton"):
         assert (folder / f"{name}.png").stat().st_size > 0 and (folder / f"{name}.pdf").exists()
@@ -125,7 +130,7 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     folders = [str(tmp_path / "results" / f"theta{t}") for t in (1, 10)]
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
-    assert out.splitlines()[1].startswith("theta1 ") and out.splitlines()[2].startswith("theta10 ")
+    assert [line.split()[0] for line in out.splitlines()[2:4]] == ["theta1", "theta10"]  # under 2 header lines
     assert (tmp_path / "results" / "compare" / "compare_convergence.pdf").exists()
     assert cli.main(["compare", *folders, "--label", "one"]) == cli.EXIT_BAD_INPUT
     assert "--label: give one per study" in capsys.readouterr().err
@@ -145,3 +150,59 @@ def test_run_verbose_adds_petsc_monitors(make_config):
     cfg = cli.with_monitors(make_config(solver={"petsc_options": {"snes_monitor": "draw"}}))
     options = dict(cfg.solver.petsc_options)
     assert options["snes_monitor"] == "draw" and "ksp_converged_reason" in options  # the user's option wins
+
+
+def test_report_columns_and_width_options(make_config, capsys):
+    cfg = make_config()
+    stop_after(cfg, 2)
+    folder = cfg.output_dir
+    assert cli.main(["report", str(folder), "--columns", "all", "--width", "6in", "--per-norm"]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert "t_forms" in out and "dofs" in out  # every column
+    assert (folder / "convergence_L2.pdf").exists() and "| level |" in (folder / "rates.md").read_text()
+    assert cli.main(["report", str(folder), "--no-plots", "--columns", "N,L2"]) == cli.EXIT_OK
+    assert (folder / "rates.md").read_text().splitlines()[1] == "| N | L² error | L² rate |"
+    assert cli.main(["report", str(folder), "--width", "2pt"]) == cli.EXIT_BAD_INPUT
+    assert "--width: must be between 100pt and 2000pt" in capsys.readouterr().err
+
+
+def cut_short(folder):
+    text = (folder / "rates.csv").read_text()
+    (folder / "rates.csv").write_text(text[:-30])
+    (folder / "study.h5").unlink()
+
+
+def no_table(folder):
+    import h5py
+    with h5py.File(folder / "study.h5", "a") as h5:
+        del h5["table"]
+    (folder / "rates.csv").unlink()
+
+
+@pytest.mark.parametrize("damage, bad_file", [(cut_short, "rates.csv"), (no_table, "study.h5")])
+def test_report_and_compare_on_damaged_results_exit_2_naming_it(make_config, capsys, damage, bad_file):
+    good, bad = (make_config(study=name) for name in ("good", "bad"))
+    for cfg in (good, bad):
+        stop_after(cfg, 2)
+    damage(bad.output_dir)
+    assert cli.main(["report", str(bad.output_dir)]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{bad.output_dir / bad_file}: damaged" in err
+    assert cli.main(["compare", str(good.output_dir), str(bad.output_dir)]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.startswith(f"signorini: error: {bad.output_dir}: ") and str(good.output_dir) not in err
+
+
+@pytest.mark.parametrize("command", [["list"], ["report", "STUDY", "--no-plots"]])
+def test_closed_stdout_ends_quietly(make_config, command):
+    cfg = make_config()
+    stop_after(cfg, 2)
+    argv = [str(cfg.output_dir) if arg == "STUDY" else arg for arg in command]
+    # `signorini ... | head -1`: the reader leaves after one line
+    done = subprocess.run(f"{sys.executable} -m signorini_cli.cli {' '.join(argv)} | head -1", shell=True,
+                          capture_output=True, text=True, timeout=120, executable="/bin/bash")
+    assert done.stdout.count("\n") == 1 and done.stderr == ""
+    # a reader gone before the first line (`| true` exits at once): every print meets a closed pipe
+    status = subprocess.run(["bash", "-o", "pipefail", "-c", f"{sys.executable} -m signorini_cli.cli "
+                             f"{' '.join(argv)} | true"], capture_output=True, timeout=120)
+    assert status.returncode == 0 and status.stderr == b""

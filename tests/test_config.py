@@ -1,4 +1,7 @@
 """Config validation: defaults, the epsilon laws, and rejections that name their key."""
+import os
+import re
+import shutil
 from pathlib import Path
 
 import pytest
@@ -60,7 +63,7 @@ def test_override_applies_before_validation():
     pytest.param({"mesh": {"kind": "disk"}}, "mesh.kind: 'disk' is not one of", id="kind"),
     pytest.param({"contact": "front"}, "contact: 'front' is not one of left, right, bottom, top", id="face-2d"),
     pytest.param({"alpah": 2}, "alpah: unknown key in config \\(did you mean 'alpha'\\?\\)", id="typo"),
-    pytest.param({"epsilon": {"thetta": 1}}, "epsilon.thetta: unknown key in epsilon \\(did you mean 'theta'", id="typo-nested"),
+    pytest.param({"epsilon": {"thetta": 1}}, "epsilon.thetta: unknown key in epsilon \\(did you mean 'epsilon.theta'", id="typo-nested"),
     pytest.param({"study": None}, "study: missing required key", id="missing"),
     pytest.param({"problem": {"exact": "z*x"}}, "problem.exact: unknown name 'z'", id="z-in-2d"),
     pytest.param({"problem": {"exact": "__import__('os')"}}, "problem.exact: unknown function", id="injection"),
@@ -141,7 +144,7 @@ DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
     pytest.param(dict(DATA_ONLY, verification={"reference_epsilon": "each"}),
                  "verification.reference_epsilon: 'each' is not one of per_level, fixed", id="ref-eps"),
     pytest.param({"verification": {"fit_level": 3}}, "verification.fit_level: unknown key in verification "
-                 r"\(did you mean 'fit_levels'\?\)", id="typo"),
+                 r"\(did you mean 'verification.fit_levels'\?\)", id="typo"),
     pytest.param({"expect": {"rates": {"L3": 2}}}, "expect.rates.L3: not a rate column of a manufactured scene",
                  id="expect-norm"),
     pytest.param(dict(DATA_ONLY, expect={"rates": {"L2": 2}}),
@@ -357,10 +360,220 @@ def test_solver_strategy_defaults():
     pytest.param({"inexact": "yes"}, "solver.inexact: must be true or false, got str 'yes'", id="inexact"),
     pytest.param({"continuation": {"factor": 2}}, "solver.continuation.factor: must be < 1", id="factor"),
     pytest.param({"continuation": {"steps": 3}}, "solver.continuation.steps: unknown key in solver.continuation "
-                 "\\(did you mean 'max_steps'", id="continuation-typo"),
+                 "\\(did you mean 'solver.continuation.max_steps'", id="continuation-typo"),
     pytest.param({"condition_max_dofs": -1}, "solver.condition_max_dofs: must be >= 0", id="condition"),
     pytest.param({"stol": -1}, "solver.stol: must be >= 0", id="stol"),
 ])
 def test_solver_strategy_rejection_names_key(changes, message):
     with pytest.raises(config.ConfigError, match="^" + message):
         load({"solver": changes})
+
+
+# --- one place per fact: defaults, the ε law, the template ----------------------------------------
+
+MINIMAL = {"study": "t", "mesh": {"kind": "unit_square", "refinements": [4]}, "contact": "bottom",
+           "problem": {"exact": "x"}}
+
+
+def test_defaults_are_the_dataclass_fields():
+    """A config of the required keys only gets each section's dataclass default: the loader has none of its own."""
+    cfg = config.loads(yaml.safe_dump(MINIMAL))
+    assert (cfg.epsilon, cfg.positive_part, cfg.solver, cfg.output, cfg.verification) == \
+        (config.Epsilon(), config.PositivePart(), config.Solver(), config.Output(), config.Verification())
+    # the values SPEC.md and README.md document
+    assert (cfg.alpha, cfg.dimension, cfg.contact_quadrature, cfg.study_type) == (2.0, 2, "exact", "refinement")
+    assert (cfg.solver.rtol, cfg.solver.max_it, cfg.epsilon.law, cfg.output.columns) == (1e-10, 50, "theta_h", "paper")
+
+
+def test_loader_writes_no_default():
+    """No `raw.get(key, <literal>)` in the loader: a default is written once, in its dataclass field."""
+    source = Path(config.__file__).read_text()
+    assert not re.findall(r'\.get\("\w+", ["\d\[(\-]', source)
+
+
+@pytest.mark.parametrize("epsilon, p, text, tex", [
+    pytest.param({"law": "theta_h"}, 1.0, "h", r"\theta h", id="theta_h"),
+    pytest.param({"law": "theta_sqrt_h", "theta": 2}, 0.5, "2√h", r"\theta\sqrt{h}", id="theta_sqrt_h"),
+    pytest.param({"law": "constant", "theta": 0.1}, 0.0, "0.1", r"\theta", id="constant"),
+    pytest.param({"law": "power", "exponent": 1.5}, 1.5, "h^1.5", r"\theta h^{1.5}", id="power"),
+])
+def test_epsilon_law_exponent_and_labels(epsilon, p, text, tex):
+    eps = load({"epsilon": epsilon}).epsilon
+    assert (eps.p, eps.formula(), eps.tex()) == (p, text, tex)
+
+
+def test_epsilon_law_names_in_one_module():
+    """A new ε law touches config.py only: no other module of the package names a law."""
+    for path in Path(config.__file__).parent.glob("*.py"):
+        if path.name != "config.py":
+            text = path.read_text()
+            assert not [law for law in config.LAWS if f'"{law}"' in text or f"'{law}'" in text], path.name
+
+
+def test_template_is_a_config_of_the_defaults():
+    cfg = config.loads(config.template())
+    assert (cfg.epsilon, cfg.positive_part, cfg.solver, cfg.output, cfg.verification, cfg.mesh.diagonal) == \
+        (config.Epsilon(), config.PositivePart(), config.Solver(), config.Output(), config.Verification(), "right")
+    assert cfg.expect is None and cfg.limit is None
+
+
+def test_template_lists_every_key_at_its_depth():
+    text = config.template()
+    for path in config.key_paths():
+        name, depth = path.rsplit(".", 1)[-1], path.count(".")
+        assert re.search(rf"^(# )?{'  ' * depth}{name}:", text, re.M), path
+    assert "# limit:" in text and "#   epsilon:" in text  # optional blocks commented out as a whole
+
+
+@pytest.mark.parametrize("changes, message", [
+    pytest.param({"exact": "x*y"}, r"exact: unknown key in config \(did you mean 'problem.exact'\?\)$", id="exact"),
+    pytest.param({"max_it": 3}, r"max_it: unknown key in config \(did you mean 'solver.max_it'\?\)$", id="max_it"),
+    pytest.param({"solver": {"theta": 1}}, r"solver.theta: unknown key in solver \(did you mean 'epsilon.theta'",
+                 id="theta-in-solver"),
+    pytest.param({"output": {"plot": False}}, r"output.plot: unknown key in output \(did you mean 'output.plots'",
+                 id="typo"),
+    pytest.param({"colour": 1}, "colour: unknown key in config$", id="nothing-close"),
+])
+def test_did_you_mean_names_the_full_path(changes, message):
+    with pytest.raises(config.ConfigError, match="^" + message):
+        load(changes)
+
+
+# --- input edges (issue 14, class 6) -------------------------------------------------------------
+
+@pytest.mark.parametrize("delta", ["-1", "0", "0*h", "1e300", "1e-200", "h - 0.01", "log(h)", "sqrt(eps - 1e-3)"])
+def test_delta_must_be_positive_with_a_finite_square(delta):
+    """δ = 0 or δ² = 0 (1e-200) makes the smoothed [u]_+ a kink (NaN Newton steps), δ² = inf (1e300)
+    overflows; h - 0.01 and log(h) fail somewhere in h ∈ (0, 1]."""
+    with pytest.raises(config.ConfigError, match=r"^positive_part.delta: must be > 0 with a finite"):
+        load({"positive_part": {"kind": "smooth", "delta": delta}})
+
+
+@pytest.mark.parametrize("delta", ["1e-2*h*sqrt(eps)", "h", "0.001", "eps"])
+def test_delta_accepted(delta):
+    assert load({"positive_part": {"kind": "smooth", "delta": delta}}).positive_part.delta.text == delta
+
+
+def test_diagonal_only_for_unit_square():
+    with pytest.raises(config.ConfigError, match="^mesh.diagonal: only meaningful with kind: unit_square"):
+        load({"dimension": 3, "mesh": {"kind": "unit_cube", "diagonal": "left"}, "problem": {"exact": "x*z"}})
+    cube = load({"dimension": 3, "mesh": {"kind": "unit_cube"}, "problem": {"exact": "x*z"}})
+    assert "diagonal" not in config.to_dict(cube)["mesh"]  # `check` prints a config that loads again
+
+
+def test_petsc_options_values_as_petsc_reads_them():
+    options = {"snes_lag_preconditioner": -2, "ksp_view": None, "-ksp_monitor": "ascii:out.txt",
+               "snes_ksp_ew": True, "ksp_rtol": 1e-8, "pc_type": "gamg"}
+    assert dict(load({"solver": {"petsc_options": options}}).solver.petsc_options) == {
+        "snes_lag_preconditioner": "-2", "ksp_view": "", "ksp_monitor": "ascii:out.txt", "snes_ksp_ew": "true",
+        "ksp_rtol": "1e-08", "pc_type": "gamg"}
+
+
+@pytest.mark.parametrize("options, message", [
+    pytest.param({"snes_linesearch": {"type": "bt"}}, "snes_linesearch: must be a single value, not a mapping",
+                 id="nested"),
+    pytest.param({"snes_max_it": "abc"}, "snes_max_it: must be an integer, got 'abc'", id="max-it-abc"),
+    pytest.param({"snes_max_it": 2.5}, "snes_max_it: must be an integer, got '2.5'", id="max-it-float"),
+    pytest.param({"ksp_rtol": "nan"}, "ksp_rtol: must be a finite number", id="rtol-nan"),
+    pytest.param({"snes_type": "ksponly"}, r"snes_type: the study chooses the SNES type .* set solver.method",
+                 id="ksponly"),
+    pytest.param({"snes_type": "newtontr"}, r"snes_type: the study chooses the SNES type", id="newtontr"),
+    pytest.param({"snes_convergence_test": "skip"}, "snes_convergence_test: would replace the study's success "
+                 "test; set solver.rtol, solver.atol and solver.stol instead", id="convergence-test"),
+    pytest.param({"snes_atol": 1}, "snes_atol: would replace the study's success test; set solver.atol",
+                 id="atol"),
+    pytest.param({"snes_monitor": "loud"}, "snes_monitor: takes no value or a viewer", id="viewer"),
+    pytest.param({"snes monitor": ""}, "snes monitor: is not a PETSc option name", id="name"),
+])
+def test_petsc_options_rejected_naming_the_option(options, message):
+    with pytest.raises(config.ConfigError, match="^solver.petsc_options." + message):
+        load({"solver": {"petsc_options": options}})
+
+
+def test_petsc_options_from_the_command_line_join_the_config():
+    cfg = config.loads(yaml.safe_dump(merge(BASE, {"solver": {"petsc_options": {"ksp_view": None}}})),
+                       options=[("snes_monitor", ""), ("ksp_rtol", "1e-8")])
+    assert cfg.solver.petsc_options == (("ksp_view", ""), ("snes_monitor", ""), ("ksp_rtol", "1e-8"))
+    assert config.to_dict(cfg)["solver"]["petsc_options"] == {"ksp_view": "", "snes_monitor": "", "ksp_rtol": "1e-8"}
+    with pytest.raises(config.ConfigError, match="^solver.petsc_options.snes_max_it: must be an integer"):
+        config.loads(yaml.safe_dump(BASE), options=[("snes_max_it", "abc")])
+
+
+@pytest.mark.parametrize("value, ok", [("exact", True), ("vertex", True), (3, True), (0, False),
+                                       ("gauss", False), (True, False), (2.5, False)])
+def test_contact_quadrature_values(value, ok):
+    if ok:
+        assert load({"contact_quadrature": value}).contact_quadrature == value
+    else:
+        with pytest.raises(config.ConfigError, match="^contact_quadrature: "):
+            load({"contact_quadrature": value})
+
+
+@pytest.mark.parametrize("value, ok", [("all", True), ("paper", True), (["N", "L2"], True), ([], False),
+                                       ("some", False), ([1], False)])
+def test_output_columns_values(value, ok):
+    if ok:
+        assert load({"output": {"columns": value}}).output.columns == (tuple(value) if isinstance(value, list)
+                                                                       else value)
+    else:
+        with pytest.raises(config.ConfigError, match="^output.columns: "):
+            load({"output": {"columns": value}})
+
+
+def test_mesh_paths_relative_to_the_config_file(tmp_path, monkeypatch):
+    folder = tmp_path / "study"
+    folder.mkdir()
+    shutil.copy(GEOMETRY_EXAMPLE, folder / "m.msh")
+    shutil.copy(geometry_files.geometry_path("unit_square"), folder / "sq.geo")
+    raw = merge(BASE, {"contact": "inner_arc", "dimension": None})
+    raw["mesh"] = {"kind": "file", "path": "m.msh"}
+    (folder / "file.yaml").write_text(yaml.safe_dump(raw))
+    raw = merge(BASE, {"contact": "contact", "dimension": None})
+    raw["mesh"] = {"kind": "gmsh", "geometry": "sq.geo", "sizes": [0.5], "cache": "cache"}
+    (folder / "gmsh.yaml").write_text(yaml.safe_dump(raw))
+    monkeypatch.chdir(tmp_path)  # another folder than the config's
+    assert config.load("study/file.yaml").mesh.path == (str(folder / "m.msh"),)
+    gmsh = config.load("study/gmsh.yaml").mesh
+    assert (gmsh.geometry, gmsh.cache) == (str(folder / "sq.geo"), str(folder / "cache"))
+    (folder / "m.msh").unlink()
+    with pytest.raises(config.ConfigError, match=r"^mesh.path: no such mesh file: 'm.msh' \(relative to the "):
+        config.load("study/file.yaml")
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "folder", "too-big"])
+def test_config_read_only_from_a_small_regular_file(kind, tmp_path):
+    """A FIFO or /dev/zero would block or never end, 50 MB of YAML takes a minute to parse: refused at once."""
+    path = {"fifo": tmp_path / "fifo", "device": Path("/dev/zero"), "folder": tmp_path,
+            "too-big": tmp_path / "big.yaml"}[kind]
+    if kind == "fifo":
+        os.mkfifo(path)
+    if kind == "too-big":
+        with open(path, "wb") as file:
+            file.truncate(config.MAX_BYTES + 1)
+    message = "more than a config's limit" if kind == "too-big" else "not a regular file"
+    with pytest.raises(config.ConfigError, match=message):
+        config.load(path)
+
+
+def billion_laughs(levels=9):
+    """YAML of a few hundred bytes whose aliases expand to 10^levels values."""
+    lines = ["l0: &l0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"l{k}: &l{k} [" + ", ".join([f"*l{k - 1}"] * 10) + "]" for k in range(1, levels)]
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("where", ["top", "petsc_options"])
+def test_alias_bomb_rejected_before_it_expands(where):
+    text = billion_laughs() if where == "top" else yaml.safe_dump(BASE) + "solver:\n  petsc_options:\n" + \
+        "".join("    " + line + "\n" for line in billion_laughs().splitlines())
+    with pytest.raises(config.ConfigError, match="^YAML expands to more than 100000 values"):
+        config.loads(text)
+
+
+def test_recursive_alias_rejected():
+    with pytest.raises(config.ConfigError, match="^YAML alias refers to itself"):
+        config.yaml_load("a: &a [*a]\n")
+
+
+def test_aliases_below_the_limit_load():
+    assert config.yaml_load(billion_laughs(levels=4))["l3"][0][0][0] == ["x"] * 10

@@ -114,3 +114,10 @@ def test_parse_rejects_constant_faults(text, message):
 def test_parse_accepts_large_but_finite_constants():
     expr = expressions.parse("2**100*x + exp(700) - 1e300", XY)
     assert np.isfinite(expr({"x": 1.0, "y": 0.0}, expressions.numpy_functions()))
+
+
+def test_math_functions_raise_where_numpy_returns_nan():
+    """config checks δ(h, eps) on floats: a domain error must raise, not pass as nan."""
+    assert expressions.parse("sqrt(h)", ("h",))({"h": 4.0}, expressions.math_functions()) == 2.0
+    with pytest.raises(ValueError):
+        expressions.parse("log(h)", ("h",))({"h": 0.0}, expressions.math_functions())

@@ -3,7 +3,10 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 import yaml
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.text import Text
 
 from signorini_cli import plots
 from conftest import BASE, merge
@@ -44,22 +47,59 @@ def triangle_labels(ax):
     return sorted(text.get_text() for text in ax.texts)
 
 
-def test_triangles_show_proven_rate_else_fitted():
+def test_triangles_proven_marked_apart_from_fitted():
     rows = synthetic({"L2": 1.9, "H1": 0.97})
     with plots.styled():
         fig = plots.convergence(rows, proven={"L2": 2.0})
     (ax,) = fig.axes
-    assert triangle_labels(ax) == ["0.97", "1", "1", "2"]  # L2: proven 2; H1: not given, its fitted slope
-    assert "proven rate, else slope fitted" in ax.get_legend().get_title().get_text()
-    assert any("fitted slope 1.90" in t.get_text() for t in ax.get_legend().get_texts())
+    assert triangle_labels(ax) == ["0.97", "1", "1", "2 proven"]  # L2: proven 2; H1: its fitted slope
+    proven, fitted = ax.patches  # drawn in the norms' order: L2, H1
+    assert proven.get_facecolor()[3] == 0 and proven.get_linestyle() != "solid"  # open, dashed
+    assert fitted.get_facecolor()[3] > 0 and fitted.get_linestyle() == "-"  # filled, solid
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["L²  (fit 1.90)", "H¹  (fit 0.97)"]
 
 
-def test_many_norms_get_one_panel_each():
+def test_plot_slopes_read_fit_levels():
+    # slope 2 on the coarse levels, 1 on the finest: 2 levels fit 1, all 4 fit the LSQ line through both
+    rows = synthetic({"L2": 2.0})
+    rows[-1]["L2"] = rows[-2]["L2"] * 0.5
+    with plots.styled():
+        two, four = (plots.convergence(rows, fit_levels=k) for k in (2, 4))
+    assert two.axes[0].get_legend().get_texts()[0].get_text() == "L²  (fit 1.00)"
+    assert four.axes[0].get_legend().get_texts()[0].get_text() != "L²  (fit 1.00)"
+
+
+def test_many_norms_two_per_panel_and_per_norm_figures(tmp_path):
     rows = synthetic({"L2": 2.0, "H1": 1.0, "L2_gamma_c": 1.5})
     with plots.styled():
         fig = plots.convergence(rows)
-    assert len(fig.axes) == 3
-    assert [triangle_labels(ax) for ax in fig.axes] == [["1", "2"], ["1", "1"], ["1", "1.5"]]
+    assert [triangle_labels(ax) for ax in fig.axes] == [["1", "1", "1", "2"], ["1", "1.5"]]
+    paths = plots.write_all(rows, tmp_path, per_norm=True)
+    assert {p.stem for p in paths} >= {"convergence_L2", "convergence_H1", "convergence_L2_gamma_c"}
+
+
+def page_checks(fig, width_pt):
+    """The figure is width_pt wide, every text at least 8 pt, no legend overlapping an axes' data area."""
+    assert fig.get_figwidth() * 72 == pytest.approx(width_pt)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_text()]
+    assert min(sizes) >= 8
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        if legend is not None:
+            box = legend.get_window_extent(renderer)
+            assert not box.overlaps(ax.get_window_extent(renderer)), "legend on the data"
+
+
+@pytest.mark.parametrize("width", [None, 510.0])
+def test_figures_fit_a_page_text_8pt_legends_off_the_data(width):
+    rows = synthetic({"L2": 2.0, "H1": 1.0, "pos_gc": 1.0, "energy_err": 1.0})
+    with plots.styled():
+        for fig in (plots.convergence(rows, width=width or plots.WIDTH_PT),
+                    plots.work_precision(rows, width=width or plots.WIDTH_PT),
+                    plots.compare_convergence({"a": rows, "b": rows}, width=width or plots.WIDTH_PT)):
+            page_checks(fig, width or 345.0)  # 345 pt: \textwidth of a default article
 
 
 def test_failed_level_left_out_of_curves_marked_in_newton():
@@ -72,31 +112,37 @@ def test_failed_level_left_out_of_curves_marked_in_newton():
     assert len(crosses) == 1 and list(crosses[0].get_xdata()) == [rows[2]["dofs"]]
 
 
-def test_work_precision_cumulative_includes_failed_levels():
+def test_work_precision_leaves_compile_time_out_failed_levels_in():
     rows = synthetic({"L2": 2.0}, failed=(1,))
+    for k, row in enumerate(rows):
+        row["t_forms"] = 5.0 if k == 0 else 0.0  # level 0 compiled the forms
     with plots.styled():
         fig = plots.work_precision(rows)
-    cumulative, own = (ax.lines[0].get_xdata() for ax in fig.axes)
-    times = [row["time_s"] for row in rows]
+    cumulative = fig.axes[0].lines[0].get_xdata()
+    times = [row["time_s"] - row["t_forms"] for row in rows]
     assert np.allclose(cumulative, np.cumsum(times)[[0, 2, 3]])  # the failed level's time still counts
-    assert np.allclose(own, [times[k] for k in (0, 2, 3)])
+    assert "JIT excluded" in fig.axes[0].get_xlabel()  # JIT: the form compilation
 
 
-def test_compare_overlays_every_study(tmp_path):
-    studies = {"a": synthetic({"L2": 2.0, "H1": 1.0}), "b": synthetic({"L2": 1.5})}
+def test_compare_is_a_grid_of_one_panel_per_norm(tmp_path):
+    studies = {"a": synthetic({"L2": 2.0, "H1": 1.0, "pos_gc": 1.0}), "b": synthetic({"L2": 1.5})}
     paths = plots.write_comparison(studies, tmp_path)
     assert {p.stem for p in paths} == {"compare_convergence", "compare_work_precision", "compare_newton"}
     with plots.styled():
         fig = plots.compare_convergence(studies)
-    assert [len(ax.lines) for ax in fig.axes] == [2, 1]  # L2: a and b; H1: a only
+    assert [len(ax.lines) for ax in fig.axes] == [2, 1, 1]  # L2: a and b; H1, pos_gc: a only
+    rows_of_panels = {round(ax.get_position().y0, 6) for ax in fig.axes}
+    assert len(rows_of_panels) == 2  # 345 pt hold two panels a row: three panels take two rows
 
 
 def test_single_level_study_plots_without_triangles(tmp_path):
     rows = synthetic({"L2": 2.0}, h=H[:1])
     with plots.styled():
         fig = plots.convergence(rows)
-    assert triangle_labels(fig.axes[0]) == []
-    assert plots.write_all(rows, tmp_path)
+    assert triangle_labels(fig.axes[0]) == [] and not fig.axes[0].patches
+    assert fig.axes[0].get_legend().get_texts()[0].get_text() == "L²  (one level)"
+    assert sorted(p.name for p in plots.write_all(rows, tmp_path)) == sorted(
+        f"{n}.{ext}" for n in ("convergence", "work_precision", "newton") for ext in ("pdf", "png"))
 
 
 def test_run_without_plots_never_imports_matplotlib(tmp_path):

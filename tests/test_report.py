@@ -1,4 +1,8 @@
 """Rate tables for papers (Markdown, LaTeX), and a study read back from study.h5 or rates.csv."""
+import shutil
+import subprocess
+from pathlib import Path
+
 import pytest
 
 from signorini_cli import config, report, results, study
@@ -16,55 +20,117 @@ KNOWN = [row(0, 8, 0.25, L2=0.01, H1=0.5),
 
 
 def test_markdown_table_known():
+    # h = 2/N on every level: N gives h, so the paper's columns leave it out
     assert report.markdown_table(KNOWN, digits=2) == (
-        "| N | h | DoFs | ε | Newton | ‖u − u_h‖_L²(Ω) | rate | \\|u − u_h\\|_H¹(Ω) | rate |\n"
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
-        "| 8 | 2.50e-01 | 81 | 2.50e-01 | 5 | 1.00e-02 | – | 5.00e-01 | – |\n"
-        "| 16 | 1.25e-01 | 289 | 1.25e-01 | 5 | 2.50e-03 | 2.00 | 2.50e-01 | 1.00 |\n"
-        "| 32 | 6.25e-02 | 1089 | 6.25e-02 | 5 (failed) | – | – | – | – |\n"
+        "| N | ε | its | L² error | L² rate | H¹ error | H¹ rate |\n"
+        "|---:|---:|---:|---:|---:|---:|---:|\n"
+        "| 8 | 2.50e-01 | 5 | 1.00e-02 | – | 5.00e-01 | – |\n"
+        "| 16 | 1.25e-01 | 5 | 2.50e-03 | 2.00 | 2.50e-01 | 1.00 |\n"
+        "| 32 | 6.25e-02 | 5 (failed) | – | – | – | – |\n"
         "\n"
         "Level 2 (N = 32) did not converge: DIVERGED_MAX_IT.\n")
 
 
-def test_latex_table_known():
-    assert report.latex_table(KNOWN[:2], digits=3, caption="study t") == (
-        "% study t\n"
-        "\\begin{tabular}{rrrrrrrrr}\n"
-        "\\toprule\n"
-        "$N$ & $h$ & DoFs & $\\varepsilon$ & Newton & $\\|u-u_h\\|_{L^2(\\Omega)}$ & rate"
-        " & $|u-u_h|_{H^1(\\Omega)}$ & rate \\\\\n"
-        "\\midrule\n"
-        "8 & $2.500 \\cdot 10^{-1}$ & 81 & $2.500 \\cdot 10^{-1}$ & 5 & $1.000 \\cdot 10^{-2}$ & --"
-        " & $5.000 \\cdot 10^{-1}$ & -- \\\\\n"
-        "16 & $1.250 \\cdot 10^{-1}$ & 289 & $1.250 \\cdot 10^{-1}$ & 5 & $2.500 \\cdot 10^{-3}$ & 2.00"
-        " & $2.500 \\cdot 10^{-1}$ & 1.00 \\\\\n"
-        "\\bottomrule\n"
-        "\\end{tabular}\n")
+def test_latex_table_grouped_with_definitions_in_caption():
+    lines = report.latex_table(KNOWN[:2], digits=3, caption="Study t").splitlines()
+    assert lines[:3] == [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{3pt}"]
+    caption = lines[3]
+    assert caption.startswith(r"\caption{Study t. $N$: cells per side") and "$h = 2/N$" in caption
+    assert r"$L^2$: $\|u-u_h\|_{L^2(\Omega)}$" in caption and caption.endswith("successive levels.}")
+    assert lines[4:] == [
+        r"\begin{tabular}{rrrrrrr}", r"\toprule",
+        r" &  &  & \multicolumn{2}{c}{$L^2$} & \multicolumn{2}{c}{$H^1$} \\",
+        r"\cmidrule(lr){4-5} \cmidrule(lr){6-7}",
+        r"$N$ & $\varepsilon$ & its & error & rate & error & rate \\", r"\midrule",
+        r"8 & 2.500e-1 & 5 & 1.000e-2 & -- & 5.000e-1 & -- \\",
+        r"16 & 1.250e-1 & 5 & 2.500e-3 & 2.00 & 2.500e-1 & 1.00 \\",
+        r"\bottomrule", r"\end{tabular}", r"\end{table}"]
 
 
 def test_latex_table_unknown_norm_escaped():
     rows = [dict(KNOWN[0], L2_gamma_c=0.1, rate_L2_gamma_c=None)]
-    assert r"\texttt{L2\_gamma\_c} & rate" in report.latex_table(rows)
+    assert r"\multicolumn{2}{c}{\texttt{L2\_gamma\_c}}" in report.latex_table(rows, columns="all")
 
 
 def test_tables_without_norms_data_only_scene():
     rows = [{k: v for k, v in KNOWN[0].items() if k not in ("L2", "rate_L2", "H1", "rate_H1")}]
-    assert report.markdown_table(rows).splitlines()[0] == "| N | h | DoFs | ε | Newton |"
+    assert report.markdown_table(rows).splitlines()[0] == "| N | ε | its |"
 
 
-def test_fitted_slope_known_power_law():
+def demo_like(levels=7):
+    """A 2-D α = 2, ε = h study's table (values as `signorini run configs/demo.yaml`, N = 8..512 gives):
+    six norms, their rates, every timing column, h = √2/N."""
+    rows = []
+    for k in range(levels):
+        n = 8 * 2**k
+        row = {"level": k, "N": n, "h": 2**0.5 / n, "dofs": (n + 1) ** 2, "epsilon": 2**0.5 / n,
+               "converged": True, "newton_its": 2, "time_s": 0.01 * 4**k, "reason": "CONVERGED_FNORM_ABS"}
+        for norm, (e0, p) in {"L2": (2.3e-2, 2), "H1": (0.574, 1), "L2_gc": (5.3e-2, 2), "pos_gc": (2.8e-2, 2),
+                              "pos_gc_scaled": (4.7e-3, 3), "energy_err": (0.574, 1)}.items():
+            row[norm], row[f"rate_{norm}"] = e0 / 2 ** (p * k), float(p) if k else None
+        row.update({f"t_{what}": 1e-3 for what in ("mesh", "forms", "newton", "errors", "output")})
+        rows.append(row)
+    return rows
+
+
+DEMO = config.load(Path(__file__).resolve().parent.parent / "configs" / "demo.yaml")
+
+
+def test_paper_columns_are_the_norms_the_paper_bounds():
+    # configs/demo.yaml: L2 (Lemma 4.2), H1 (Cor. 3.2 i), [u]_+ on Γ_C (Cor. 3.2 ii), energy (Lemma 3.1);
+    # no rate for L2 on Γ_C; the scaled [u]_+ is a power of the unscaled one
+    lead, shown = report.choose(demo_like(), "paper", report.proven_rates(DEMO))
+    assert lead == ["N", "epsilon", "newton_its"] and shown == ["L2", "H1", "pos_gc", "energy_err"]
+
+
+def test_terminal_table_fits_120_columns_all_one_option_away():
+    rows = demo_like()
+    default = report.format_table(rows, DEMO).splitlines()
+    assert max(map(len, default)) <= 120 and len(default) == 2 + len(rows)
+    everything = report.format_table(rows, DEMO, columns="all").splitlines()
+    assert all(column in everything[1] for column in ("dofs", "t_forms", "converged"))
+    assert everything[0].split() == ["L2", "H1", "L2_gc", "pos_gc", "pos_gc_scaled", "energy_err"]
+
+
+def test_columns_list_and_unknown_column():
+    lead, shown = report.choose(KNOWN, ["N", "h", "L2"])
+    assert (lead, shown) == (["N", "h"], ["L2"])
+    with pytest.raises(config.ConfigError, match="output.columns: 'L3' is not a column of this study"):
+        report.choose(KNOWN, ["N", "L3"])
+
+
+def test_h_kept_when_n_does_not_give_it():
+    rows = [dict(row, h=row["h"] * (1 + 0.1 * k)) for k, row in enumerate(KNOWN)]  # gmsh-like sizes
+    assert report.choose(rows)[0] == ["N", "h", "epsilon", "newton_its"]
+
+
+@pytest.mark.skipif(not shutil.which("pdflatex"), reason="pdflatex not installed")
+def test_default_latex_table_fits_a_default_article(tmp_path):
+    (tmp_path / "rates.tex").write_text(report.latex_table(demo_like(), 3, "Study demo",
+                                                           proven=report.proven_rates(DEMO)))
+    (tmp_path / "doc.tex").write_text("\\documentclass{article}\n\\usepackage{booktabs}\n"
+                                      "\\begin{document}\n\\input{rates.tex}\n\\end{document}\n")
+    done = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", "doc.tex"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout[-2000:]
+    assert "Overfull" not in (tmp_path / "doc.log").read_text()
+
+
+def test_fitted_slope_reads_the_last_k_levels():
+    # e = h^2 on the coarse levels, then e = h^1: the slope depends on how many levels are fitted
     h = [0.4, 0.2, 0.1, 0.05]
-    assert report.fitted_slope(h, [3 * x**1.5 for x in h]) == pytest.approx(1.5, rel=1e-12)
+    e = [0.16, 0.04, 0.01, 0.005]
+    assert report.fitted_slope(h, e, k=2) == pytest.approx(1.0, rel=1e-12)
+    assert report.fitted_slope(h, e, k=3) == pytest.approx(1.5, rel=1e-12)  # slopes 2 then 1: LSQ line 1.5
     assert report.fitted_slope(h[:1], [1.0]) is None
 
 
 def test_summary_table_one_line_per_study():
-    text = report.summary_table({"a": KNOWN, "b": KNOWN[:1]})
-    lines = text.splitlines()
-    assert lines[0].split()[:3] == ["study", "levels", "finest"] and len(lines) == 3
-    assert lines[1].split()[:3] == ["a", "3", "1.250e-01"] and " 2.00 " in lines[1]
-
-
+    lines = report.summary_table({"a": KNOWN, "b": KNOWN[:1]}).splitlines()
+    assert lines[0].split() == ["L²", "H¹"] and lines[1].split()[:4] == ["study", "levels", "finest", "h"]
+    # a: finest converged level N = 16 (h = 0.125), 1.5 s in all; L2 from 1e-2 to 2.5e-3 as h halves: slope 2
+    assert lines[2].split() == ["a", "3", "1.250e-01", "1.50", "2.500e-03", "2.00", "2.500e-01", "1.00"]
+    assert lines[3].split() == ["b", "1", "2.500e-01", "0.50", "1.000e-02", "-", "5.000e-01", "-"]
 
 
 @pytest.mark.parametrize("name", ["study.h5", "rates.csv", ""])
@@ -85,3 +151,48 @@ def test_load_h5_and_csv_agree(partial_study):
 def test_load_missing_path_names_problem(tmp_path):
     with pytest.raises(FileNotFoundError, match="not a study folder"):
         report.load(tmp_path)
+
+
+def cut_csv(folder):
+    text = (folder / "rates.csv").read_text()
+    (folder / "rates.csv").write_text(text[:len(text) - 40])  # the last row loses its last fields
+
+
+def nan_in_n(folder):
+    lines = (folder / "rates.csv").read_text().splitlines()
+    lines[2] = lines[2].replace(",8,", ",nan,", 1)  # level 1 has N = 8
+    (folder / "rates.csv").write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("damage, message", [
+    pytest.param(cut_csv, "rates.csv: damaged, row 2 does not have the header's", id="cut"),
+    pytest.param(nan_in_n, "rates.csv: damaged, N = nan at level 1", id="nan"),
+])
+def test_damaged_csv_names_the_file(partial_study, damage, message):
+    folder = partial_study.output_dir
+    damage(folder)
+    with pytest.raises(report.DamagedResults, match=message):
+        report.load(folder / "rates.csv")
+
+
+def drop_table(folder):
+    import h5py
+    with h5py.File(folder / "study.h5", "a") as h5:
+        del h5["table"]
+
+
+def truncate_h5(folder):
+    data = (folder / "study.h5").read_bytes()
+    (folder / "study.h5").write_bytes(data[:len(data) // 3])
+
+
+@pytest.mark.parametrize("damage", [drop_table, truncate_h5])
+def test_damaged_h5_falls_back_to_rates_csv(partial_study, damage, caplog):
+    folder = partial_study.output_dir
+    intact = report.load(folder / "rates.csv").rows
+    damage(folder)
+    assert report.load(folder).rows == intact
+    assert "study.h5: damaged" in caplog.text and "reading" in caplog.text
+    cut_csv(folder)
+    with pytest.raises(report.DamagedResults, match="study.h5: damaged.*; .*rates.csv: damaged"):
+        report.load(folder)

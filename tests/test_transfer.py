@@ -5,11 +5,17 @@ import ufl
 from mpi4py import MPI
 
 from dolfinx import fem, mesh
-from signorini_cli.transfer import evaluate, kuhn_grid, kuhn_transfer, transfer
+from signorini_cli import grids
+from signorini_cli.transfer import evaluate, evaluate_routed, kuhn_grid, kuhn_transfer, needed_layers, transfer
 
 MESHES = [
     pytest.param(lambda comm, n: mesh.create_unit_square(comm, n, n), id="2d"),
     pytest.param(lambda comm, n: mesh.create_unit_cube(comm, n, n, n), id="3d"),
+    # the built-in meshes as meshes.build makes them (slabs per rank): Kuhn fast path and searched path
+    pytest.param(lambda comm, n: grids.create(comm, 2, n, "right"), id="grid-2d-right"),
+    pytest.param(lambda comm, n: grids.create(comm, 2, n, "left"), id="grid-2d-left"),
+    pytest.param(lambda comm, n: grids.create(comm, 2, n, "crossed"), id="grid-2d-crossed"),
+    pytest.param(lambda comm, n: grids.create(comm, 3, n), id="grid-3d"),
 ]
 
 
@@ -82,7 +88,9 @@ def check_kuhn_fast_path(comm):
     """The closed-form P1 interpolant on the built-in Kuhn grids is the source itself at any point:
     it matches point evaluation (search in the source's cells) also on a non-nested target."""
     for make, coarse_n, fine_n in ((lambda n: mesh.create_unit_square(comm, n, n), 8, 12),
-                                   (lambda n: mesh.create_unit_cube(comm, n, n, n), 4, 6)):
+                                   (lambda n: mesh.create_unit_cube(comm, n, n, n), 4, 6),
+                                   (lambda n: grids.create(comm, 2, n, "right"), 8, 12),
+                                   (lambda n: grids.create(comm, 3, n), 4, 6)):
         coarse = p1_function(make(coarse_n))
         assert kuhn_grid(coarse.function_space.mesh) == coarse_n
         V_fine = fem.FunctionSpace(make(fine_n), ("Lagrange", 1))
@@ -115,3 +123,28 @@ def test_kuhn_grid_only_for_kuhn_triangulations(diagonal):
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 8, 8, diagonal=getattr(mesh.DiagonalType, diagonal))
     assert kuhn_grid(msh) == 0  # these take the searched path, exact on nested meshes as above
     assert kuhn_grid(mesh.create_rectangle(MPI.COMM_WORLD, [np.zeros(2), np.array([2.0, 1.0])], [8, 4])) == 0
+
+
+@pytest.mark.parametrize("points, layers", [
+    (np.zeros((0, 2)), (0, -1)),                      # no targets: no layer
+    (np.array([[0.1, 0.0], [0.9, 0.3]]), (0, 3)),    # n = 8: y = 0.3 lies in cell row 2, read up to row 3
+    (np.array([[0.5, 1.0]]), (7, 8)),                # the top edge belongs to the last cell row, 7
+    (np.array([[0.5, 0.5, 0.25]]), (2, 3)),          # 3-D: the last axis is z
+])
+def test_needed_layers(points, layers):
+    assert needed_layers(points, 8) == layers
+
+
+@pytest.mark.mpi
+def test_kuhn_transfer_reads_only_its_layers():
+    """On 2 ranks of slabs no rank needs the whole coarse grid (17 layers at N = 16), only its half."""
+    comm = MPI.COMM_WORLD
+    coarse = p1_function(grids.create(comm, 2, 16, "right"))
+    V_fine = fem.FunctionSpace(grids.create(comm, 2, 32, "right"), ("Lagrange", 1))
+    first, last = needed_layers(V_fine.tabulate_dof_coordinates()[:, :2], 16)
+    assert last - first + 1 <= 8 + 1 + 2  # 8 cell rows of its slab + the ghost row + the top row's points
+    owned = V_fine.dofmap.index_map.size_local
+    searched, found = evaluate_routed(coarse, V_fine.tabulate_dof_coordinates()[:owned])
+    assert found.all()
+    # round-off of two evaluations of one affine function per cell
+    assert np.abs(kuhn_transfer(coarse, 16, V_fine).x.array[:owned] - searched).max() < 1e-13

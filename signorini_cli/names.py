@@ -1,0 +1,51 @@
+"""Names of a study table's columns: the short name a header or an axis shows, and the definition a
+caption gives (report's tables, plots' axes and legends, progress lines all read them here)."""
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Name:
+    """text: plain Unicode (terminal, Markdown, figures); tex and definition: LaTeX in text mode (a
+    header, a caption), no package beyond a default article."""
+    text: str
+    tex: str
+    definition: str
+
+
+# the error norms (the paper's bounds: Lemma 3.1, Corollary 3.2, Lemma 4.2); H1 is the seminorm
+NORMS = {
+    "L2": Name("L²", "$L^2$", r"$\|u-u_h\|_{L^2(\Omega)}$"),
+    "H1": Name("H¹", "$H^1$", r"$|u-u_h|_{H^1(\Omega)}$ (seminorm)"),
+    "L2_gc": Name("L²(Γ_C)", r"$L^2(\Gamma_C)$", r"$\|u-u_h\|_{L^2(\Gamma_C)}$"),
+    "pos_gc": Name("[·]+ on Γ_C", r"$[\cdot]_+$", r"$\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}$"),
+    "pos_gc_scaled": Name("[·]+ scaled", r"$[\cdot]_+^{(\alpha+1)/2}$",
+                          r"$\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{(\alpha+1)/2}$"),
+    "energy_err": Name("energy", "energy",
+                       r"$(|u-u_h|_{H^1}^2+\varepsilon^{-1}\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{\alpha+1})^{1/2}$"
+                       " (Lemma 3.1)"),
+}
+# the columns before the errors
+COLUMNS = {
+    "level": Name("level", "level", "the refinement level"),
+    "N": Name("N", "$N$", "cells per side (gmsh and file meshes: the number of cells)"),
+    "h": Name("h", "$h$", "the largest cell diameter"),
+    "dofs": Name("DoFs", "DoFs", "the number of unknowns"),
+    "epsilon": Name("ε", r"$\varepsilon$", "the penalty parameter"),
+    "newton_its": Name("its", "its", "Newton iterations"),
+    "time_s": Name("time", "time", "wall time of the level in seconds"),
+}
+
+
+def name(column):
+    """The Name of any column; a reference norm X_ref reads "X ref", an unknown column its own name."""
+    if column in NORMS:
+        return NORMS[column]
+    if column in COLUMNS:
+        return COLUMNS[column]
+    if column.endswith("_ref") and column[:-4] in NORMS:
+        base = NORMS[column[:-4]]
+        ref = r"u_{\mathrm{ref}}"
+        return Name(base.text + " ref", base.tex + " ref",
+                    base.definition.replace("u-u_h", ref + "-u_h").replace("[u]_+", f"[{ref}]_+"))
+    plain = column.replace("_", " ")
+    return Name(plain, r"\texttt{" + column.replace("_", r"\_") + "}", plain.replace("_", r"\_"))
