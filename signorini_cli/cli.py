@@ -156,6 +156,9 @@ def entry():
     except KeyboardInterrupt:  # before the handlers of guard.supervise are in place (MPI starting)
         print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
         return 128 + 2
+    except BrokenPipeError:  # `signorini list | head -1`: the reader has what it wanted (report and
+        guard.stdout_to_devnull()  # compare write their files before they print)
+        return EXIT_OK
     except Exception:  # main() lets a bug's exception through, with its traceback, for tests and callers
         import traceback
         traceback.print_exc()

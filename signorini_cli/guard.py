@@ -1,6 +1,7 @@
 """Faults around a study: SIGINT/SIGTERM end it cleanly, an exception on one rank ends every rank,
 a study folder is written by one run at a time, a closed stdout ends output quietly, and the study's
 status is kept on disk next to its results."""
+import ctypes
 import errno
 import fcntl
 import logging
@@ -29,6 +30,7 @@ GRACE_S = 0.5
 # level starts, like a crash inside a level (tests/test_guard.py: one rank of two fails).
 TEST_FAIL = "SIGNORINI_TEST_FAIL"
 CRASH_STATUS = 3  # a bug (an exception that is no bad input): its traceback is printed, the status kept
+PR_SET_PDEATHSIG = 1  # prctl(2): the signal a child gets when its parent dies
 BAD_SURROUNDINGS = 2  # as bad input: the results could not be written (a full disk, a folder gone read-only)
 
 
@@ -338,9 +340,14 @@ def stdout_may_close():
         yield
         sys.stdout.flush()
     except BrokenPipeError:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        os.close(devnull)
+        stdout_to_devnull()
+
+
+def stdout_to_devnull():
+    """Point stdout at /dev/null: what is still buffered for a closed pipe goes nowhere, quietly."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 # --- C code that does not see signals ------------------------------------------------------------
@@ -350,10 +357,11 @@ def in_child(work, *args):
     raised here as a RuntimeError with its message. gmsh meshes in C, where a Python signal handler
     cannot run; here the parent waits, and SIGINT/SIGTERM kill the child and go on as Interrupted."""
     read_end, write_end = os.pipe()
+    parent = os.getpid()
     pid = os.fork()
     if pid == 0:  # the child: no MPI, no atexit handlers, only work
         os.close(read_end)
-        _child(work, args, write_end)
+        _child(work, args, write_end, parent)
     os.close(write_end)
     try:
         with os.fdopen(read_end, "rb") as pipe:
@@ -369,9 +377,13 @@ def in_child(work, *args):
     return value
 
 
-def _child(work, args, write_end):
+def _child(work, args, write_end, parent):
     for sig in SIGNALS:
         signal.signal(sig, signal.SIG_DFL)
+    # killed with its parent (kill -9 too): no orphan meshing on, holding the study folder's flock
+    ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:  # the parent died before prctl
+        os._exit(1)
     try:
         answer = ("ok", work(*args))
     except BaseException as err:  # whatever it is, the parent must hear of it
