@@ -5,6 +5,7 @@ from contextlib import contextmanager
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 # a level's phases, in table order; `linear` and `pc_setup` come from PETSc's event log, the rest
 # are wall clocks (transfer: the initial guess, nested iteration's move of the previous level's u_h;
@@ -48,7 +49,6 @@ class Phases:
 def petsc_event_times():
     """Seconds PETSc has logged so far on this rank in the events of PETSC_EVENTS (the log is
     switched on at the first call: a phase that starts it counts from there)."""
-    from petsc4py import PETSc
     if not PETSc.Log.isActive():
         PETSc.Log.begin()
     return {phase: sum(PETSc.Log.Event(event).getPerfInfo()["time"] for event in events)

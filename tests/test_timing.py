@@ -32,8 +32,8 @@ def test_phases_accumulate_and_take_the_slowest_rank():
     phases.deduct("mesh", 0.005)
     columns = phases.columns(MPI.COMM_SELF)
     assert list(columns) == [f"t_{name}" for name in timing.PHASES]
-    # two sleeps of 10 ms less 5 ms; 10 ms of slack for a loaded machine
-    assert 0.015 <= columns["t_mesh"] < 0.025 and columns["t_newton"] == 0.0
+    # two sleeps of at least 10 ms each, less 5 ms (no upper bound: a loaded machine sleeps longer)
+    assert columns["t_mesh"] >= 0.015 and columns["t_newton"] == 0.0
 
 
 @pytest.mark.parametrize("scene", list(BEFORE))
