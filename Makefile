@@ -87,3 +87,9 @@ stiff: setup
 # issue 6: bench/configs/ serially, on $(NP) ranks and with three start strategies -> bench/results.md, .csv
 bench: setup
 	$(PY) scripts/bench.py
+
+.PHONY: precision
+# issue 17 item 5: every configs/**/*.yaml (first 4 levels in 2-D, 3 in 3-D) at default settings, with a tight
+# solve and with solver.polish=0 -> results/precision/precision.md; fails when an error entry moves by > 1e-6
+precision: setup
+	$(PY) scripts/precision.py

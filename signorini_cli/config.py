@@ -135,6 +135,7 @@ class Solver:
     continuation: Continuation = Continuation()
     condition_max_dofs: int = 0  # estimate cond(J) on levels with at most this many dofs
     linear_floor: bool = False  # time one linear solve of the converged Jacobian per level (make bench)
+    polish: int = 3  # at most this many Newton steps after success, to an error <= 1e-13 ||u_h|| (issue 17)
 
 
 @dataclass(frozen=True)
@@ -447,7 +448,7 @@ def _solver(raw, path):
 
 
 SOLVER_STRATEGY_KEYS = ("strategy", "method", "stol", "preconditioner", "linear_rtol", "linear_fallback",
-                        "inexact", "continuation", "condition_max_dofs", "linear_floor")
+                        "inexact", "continuation", "condition_max_dofs", "linear_floor", "polish")
 
 
 def _solver_strategy(raw, path):
@@ -466,7 +467,8 @@ def _solver_strategy(raw, path):
                 continuation=_continuation(raw.get("continuation", {}), f"{path}.continuation"),
                 condition_max_dofs=_integer(raw.get("condition_max_dofs", 0), f"{path}.condition_max_dofs",
                                             low=0),
-                linear_floor=_boolean(raw.get("linear_floor", False), f"{path}.linear_floor"))
+                linear_floor=_boolean(raw.get("linear_floor", False), f"{path}.linear_floor"),
+                polish=_integer(raw.get("polish", 3), f"{path}.polish", low=0))
 
 
 def _continuation(raw, path):
