@@ -44,12 +44,12 @@ run: setup
 studies: setup
 	@set -e; for c in $(CONFIGS); do echo "== $$c"; $(SIGNORINI) run $$c --force || test $$? -eq 1; done
 
-# The configs/paper studies, then docs/verification.md and the configs' "# Observed" headers from their results (page written even when an
+# The configs/paper studies, then docs/verification.md from their results (page written even when an
 # `expect:` block is missed; the target fails afterwards, naming the studies).
 verify: setup
 	@set -e; missed=""; for c in $(PAPER_CONFIGS); do echo "== $$c"; \
 	  $(SIGNORINI) run $$c --force --output $(PAPER_RESULTS) || { test $$? -eq 1; missed="$$missed $$c"; }; done; \
-	mkdir -p docs; $(PY) scripts/verification_page.py $(PAPER_RESULTS) $(PAPER_CONFIGS) --update-configs > docs/verification.md.tmp; \
+	mkdir -p docs; $(PY) scripts/verification_page.py $(PAPER_RESULTS) $(PAPER_CONFIGS) > docs/verification.md.tmp; \
 	mv docs/verification.md.tmp docs/verification.md; echo "wrote docs/verification.md"; \
 	if [ -n "$$missed" ]; then echo "expectations not met or levels not converged:$$missed"; exit 1; fi
 
@@ -75,7 +75,7 @@ LIMIT_CONFIGS := $(sort $(wildcard configs/limit/*.yaml))
 limit: setup
 	@set -e; missed=""; for c in $(LIMIT_CONFIGS); do echo "== $$c"; \
 	  $(SIGNORINI) run $$c --force || { test $$? -eq 1; missed="$$missed $$c"; }; done; \
-	$(PY) -m signorini_cli.limit_docs $(LIMIT_CONFIGS) --out docs/limit.md; \
+	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out docs/limit.md; \
 	if [ -n "$$missed" ]; then echo "levels not converged or expectations not met:$$missed"; exit 1; fi
 
 .PHONY: stiff

@@ -75,39 +75,45 @@ def _run_command(args):
 
 
 def run(cfg, quiet=False, verbose=False, done=()):
-    """Run the study (after the levels `done`), writing results and status after each level, with
-    progress, the table, tables and plots on rank 0."""
+    """Run the study (after the levels `done`), writing results and status after each solve, with
+    progress, the table(s), the verdict, tables and plots on rank 0; any study type."""
     from mpi4py import MPI
     from . import progress, report, results, study, verdict
     comm = MPI.COMM_WORLD
     run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
-    if cfg.study_type in ("epsilon_sweep", "total_error"):  # own tables (docs/limit.md)
-        from . import limit
-        return EXIT_OK if limit.run(run_cfg, comm, quiet=quiet) else EXIT_NOT_CONVERGED
-    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet)
+    levels_study = cfg.study_type in results.LEVEL_STUDIES
+    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet and levels_study)
     shown.level = len(done)  # a resumed study starts further on
     if done and comm.rank == 0 and not quiet:
         print(f"study {cfg.study}: resuming after level {done[-1].index}")
 
-    def on_level(levels):
-        shown.level_done(watch.level_done(levels))
+    def on_level(result):
+        shown.level_done(watch.level_done(result))
 
     with guard.Watch(cfg, done, comm) as watch:
-        levels = study.run_study(run_cfg, on_level=on_level, comm=comm,
+        result = study.run_study(run_cfg, on_level=on_level, comm=comm,
                                  monitor=None if verbose or quiet else shown.monitor, done=done)
-    rows = results.table(levels)
-    summary = verdict.summarize(cfg, levels)
+    summary = verdict.summarize(cfg, result) if levels_study else None
     if comm.rank == 0:
-        written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
-                               plots=cfg.output.plots)
+        text = _outputs(cfg, result, summary)
         if not quiet:
-            print(f"study {cfg.study}: {cfg.output_dir}")
-            print(report.format_table(rows))
-            print(verdict.format_summary(summary))
-            print("wrote " + ", ".join(path.name for path in written))
-    if not summary.met:  # the user's `expect:` block: batch runs gate on it
+            print(text)
+    if summary is not None and not summary.met:  # the user's `expect:` block: batch runs gate on it
         return EXIT_EXPECTATION_NOT_MET
-    return EXIT_OK if all(lv.outcome.converged for lv in levels) else EXIT_NOT_CONVERGED
+    return EXIT_OK if all(solve.outcome.converged for solve in result) else EXIT_NOT_CONVERGED
+
+
+def _outputs(cfg, result, summary):
+    """Write the study's tables and plots (rank 0) and return what the terminal shows."""
+    from . import report, results, verdict
+    if summary is None:
+        named = results.limit_tables(cfg, result)
+        return report.limit_summary(cfg, named, report.write_limit(cfg, result, named))
+    rows = results.table(result)
+    written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
+                           plots=cfg.output.plots)
+    return "\n".join([f"study {cfg.study}: {cfg.output_dir}", report.format_table(rows),
+                      verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
 
 
 def with_monitors(cfg):

@@ -197,6 +197,17 @@ class Config:
     def output_dir(self):
         return Path(self.output.dir) / self.study
 
+    @property
+    def solves(self):
+        """The solves the study records: one per level; an ε-sweep one VI per mesh and one per (mesh, α,
+        ε); a total-error study one refinement study per (α, p) and the VI's."""
+        levels = len(self.mesh.levels)
+        if self.study_type == "epsilon_sweep":
+            return levels * (1 + len(self.limit.alpha) * len(self.limit.epsilon))
+        if self.study_type == "total_error":
+            return levels * (1 + len(self.limit.alpha) * len(self.limit.exponent))
+        return levels
+
 
 # --- loading -----------------------------------------------------------------------------------
 

@@ -8,6 +8,10 @@ import time
 import traceback
 from contextlib import contextmanager
 
+from mpi4py import MPI
+
+from . import results
+
 logger = logging.getLogger(__name__)
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -85,7 +89,6 @@ def supervise(body):
     """body() -> exit status, with SIGINT/SIGTERM as Interrupted. An interruption prints one line and
     gives 128 + signal. On several ranks any fault ends every rank (MPI abort) instead of leaving the
     others waiting in a collective; a bug's traceback is printed once."""
-    from mpi4py import MPI
     comm = MPI.COMM_WORLD
     with interruptible():
         try:
@@ -125,15 +128,17 @@ def _first_line(err):
     return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
 
 
-def status(cfg, levels):
+def status(cfg, result):
     """'complete'; 'failed at level k: REASON' when a level did not converge and on_failure is stop;
-    else 'running (k of n levels done)'."""
-    total = len(cfg.mesh.levels)
-    if levels and not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
-        return f"failed at level {levels[-1].index}: {levels[-1].outcome.reason}"
-    if len(levels) == total:
+    else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels)."""
+    solves = list(result)
+    unit = "levels" if cfg.study_type in results.LEVEL_STUDIES else "solves"
+    last = solves[-1] if solves else None
+    if unit == "levels" and last and not last.outcome.converged and cfg.solver.on_failure == "stop":
+        return f"failed at level {last.index}: {last.outcome.reason}"
+    if len(solves) == cfg.solves:
         return "complete"
-    return f"running ({len(levels)} of {total} levels done)"
+    return f"running ({len(solves)} of {cfg.solves} {unit} done)"
 
 
 class Watch:
@@ -155,18 +160,18 @@ class Watch:
     def level_done(self, levels):
         """run_study's on_level: write the results whole (signals wait), then the testing hook; the rows."""
         with deferred():
-            self.levels = list(levels)
+            self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
             start = time.perf_counter()
             rows = results_write(self.cfg, self.levels, self.comm)
-            if len(self.levels) > self.recorded:  # the new level's t_output: its record written
+            if isinstance(self.levels, list) and len(self.levels) > self.recorded:  # the new level's t_output
                 timings = self.levels[-1].timings
                 timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
                 self.recorded = len(self.levels)
-        fault_hook(len(self.levels), self.comm)
+        fault_hook(len(list(self.levels)), self.comm)
         return rows
 
     def __exit__(self, kind, err, tb):
-        if err is None and len(self.levels) > self.done:
+        if err is None and len(list(self.levels)) > self.done:
             with deferred():  # once more, so that the last level's record holds its own t_output
                 results_write(self.cfg, self.levels, self.comm)
             return False
@@ -175,7 +180,8 @@ class Watch:
         settle(err, self.comm)
         state = self.ending(err)
         if isinstance(err, Interrupted):
-            err.note = (f" at level {len(self.levels)}: the {len(self.levels)} finished level(s) are in "
+            done = len(list(self.levels))
+            err.note = (f" at level {done}: the {done} finished level(s) are in "
                         f"{self.cfg.output_dir}; continue with --resume" if state.startswith("interrupted")
                         else f" as the study ended ({state}): results in {self.cfg.output_dir}")
         with deferred(drop=True):
@@ -185,7 +191,7 @@ class Watch:
     def ending(self, err):
         """The status a study ending with `err` leaves."""
         if status(self.cfg, self.levels).startswith("running"):
-            where = f"at level {len(self.levels)}"
+            where = f"at level {len(list(self.levels))}"
             if isinstance(err, Interrupted):
                 return f"interrupted {where}"
             return f"failed {where}: {_first_line(err)}"
@@ -193,16 +199,15 @@ class Watch:
 
     def record(self, state):
         """Write the results with `state` from this rank alone: the others may be gone or waiting."""
-        from . import results
         try:
-            results.write_files(self.cfg, self.levels, results.table(self.levels), self.comm.size, state)
+            rows = results.main_table(self.cfg, self.levels)
+            results.write_files(self.cfg, self.levels, rows, self.comm.size, state)
         except OSError as err:
             logger.warning("could not record the status %r in %s: %s", state, self.cfg.output_dir, err)
 
 
 def results_write(cfg, levels, comm):
     """rates.csv, study.h5 and status.txt of the levels so far (collective); the table's rows."""
-    from . import results
     return results.write(cfg, levels, comm, status=status(cfg, levels))
 
 

@@ -6,6 +6,7 @@ from mpi4py import MPI
 from dolfinx import fem
 
 ERROR_DEGREE = 8  # quadrature for u_h − u_ex: P1 error of a smooth u_ex, well above the rates' needs
+P1_DEGREE = 2  # ∫ of products of two P1 functions or of their gradients: degree 2 is exact
 
 
 def integrate(expr, measure):
@@ -21,6 +22,23 @@ def errors(u_h, u_exact):
     e = u_h - u_exact
     return {"L2": np.sqrt(abs(integrate(e**2, dx))),
             "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
+
+
+def difference_norms(u_h, u):
+    """{'L2': ||u - u_h||_{L2}, 'H1': |u - u_h|_{H1}} for two P1 functions on one mesh (exact quadrature)."""
+    dx = ufl.Measure("dx", domain=u.function_space.mesh, metadata={"quadrature_degree": P1_DEGREE})
+    e = u - u_h
+    return {"L2": np.sqrt(abs(integrate(e**2, dx))),
+            "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
+
+
+def model_differences(u_eps, u_S, ds_c, gamma_c_dofs):
+    """The model error of an ε-sweep: ||u_{ε,h} − u_{S,h}|| in L2(Ω), H1 (seminorm) and L2(Γ_C) (`ds_c`
+    exact for P1 products), and the largest penetration max_Γc [u_{ε,h}]_+ (a nodal max for P1)."""
+    found = difference_norms(u_eps, u_S)
+    found["L2_gamma_c"] = np.sqrt(abs(integrate((u_eps - u_S) ** 2, ds_c)))
+    found["penetration"] = penetration(u_eps, gamma_c_dofs)
+    return found
 
 
 # --- Γ_C: the contact-boundary terms of Lemma 3.1 and Corollary 3.2, and what a user quotes ---------

@@ -2,6 +2,7 @@
 from dataclasses import dataclass, field
 
 import numpy as np
+import ufl
 from mpi4py import MPI
 
 import dolfinx.graph
@@ -24,6 +25,15 @@ class Domain:
     h_min: float
     n: int
     columns: dict = field(default_factory=dict)  # the mesh's own per-level table columns (gmsh/file kinds)
+
+    def facets(self, marker=CONTACT):
+        """Local indices of the facets tagged `marker` (Γ_C by default; owned and ghost)."""
+        return self.facet_tags.indices[self.facet_tags.values == marker]
+
+    def ds_c(self, degree):
+        """The UFL measure over Γ_C with a quadrature of this degree."""
+        return ufl.Measure("ds", domain=self.mesh, subdomain_data=self.facet_tags,
+                           metadata={"quadrature_degree": degree})(CONTACT)
 
 
 def build(mesh_cfg, contact, n, comm=MPI.COMM_WORLD):

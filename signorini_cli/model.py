@@ -5,7 +5,7 @@ import ufl
 from dolfinx import fem
 
 from . import expressions
-from .meshes import CONTACT
+from .meshes import CONTACT, DIRICHLET
 
 QUADRATURE_DEGREE = 6  # data terms (sin, exp ...) and the kinked [u_h]_+^alpha on Γ_C
 
@@ -89,3 +89,12 @@ def _variables(msh, eps):
     x = ufl.SpatialCoordinate(msh)
     names = ("x", "y", "z")[:msh.geometry.dim]
     return dict(zip(names, x), eps=eps)
+
+
+def dirichlet_condition(V, domain, u_exact):
+    """u = u_ex on Γ_D for manufactured scenes (u_ex vanishes there in the paper's setting), else 0."""
+    dofs = fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, domain.facets(DIRICHLET))
+    u_D = fem.Function(V)
+    if u_exact is not None:
+        u_D.interpolate(fem.Expression(u_exact, V.element.interpolation_points()))
+    return fem.dirichletbc(u_D, dofs)

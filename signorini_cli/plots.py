@@ -281,3 +281,33 @@ def _finish(fig, ax, title):
     elif title:
         fig.suptitle(title, fontsize=9.5)
     fig.tight_layout()
+
+
+def model_error(rows, path):
+    """The model-error figure of `rows` (one mesh of an ε-sweep) as `path` (its suffix picks the format)."""
+    with styled():
+        model_error_figure(rows).savefig(path)
+    return path
+
+
+def model_error_figure(rows):
+    """H1 and L2 model error against ε, one curve per α, log-log, with the slope 1/α over the smaller
+    half of the sweep; a Figure on the Agg canvas (no pyplot)."""
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(2 * WIDTH, HEIGHT))
+    for ax, norm, label in zip(fig.subplots(1, 2), ("H1", "L2"), (r"$|u_{\varepsilon,h}-u_{S,h}|_{H^1}$",
+                                                                  r"$\|u_{\varepsilon,h}-u_{S,h}\|_{L^2}$")):
+        for k, alpha in enumerate(sorted({r["alpha"] for r in rows})):
+            curve = [r for r in rows if r["alpha"] == alpha and r[norm] is not None]
+            eps, err = [r["epsilon"] for r in curve], [r[norm] for r in curve]
+            style = curve_style(k)
+            ax.loglog(eps, err, color=style["color"], marker=style["marker"], label=rf"$\alpha = {alpha:g}$")
+            tail = eps[len(eps) // 2:]  # through the last point
+            ax.loglog(tail, [err[-1] * (e / eps[-1]) ** (1 / alpha) for e in tail], ls=":", lw=2,
+                      color=style["color"], label=rf"slope $1/{alpha:g}$")
+        ax.set_xlabel(r"penalty parameter $\varepsilon$")
+        ax.set_ylabel(label)
+        ax.legend(fontsize=8)
+    fig.suptitle(f"Model error of the compliance model on the fixed mesh N = {rows[0]['N']}", fontsize=9.5)
+    fig.tight_layout()
+    return fig

@@ -1,20 +1,17 @@
 """Reference solutions for scenes given by their data only: the same problem solved on the mesh one or
 two uniform refinements beyond the finest level, levels moved onto it by an exact (nested) transfer."""
+import dataclasses
 import logging
 import time
 
-import numpy as np
-import ufl
 from mpi4py import MPI
 
 from dolfinx import fem
 
-from . import measure, meshes, model, solver
-from .meshes import CONTACT, DIRICHLET
+from . import measure, meshes, model, strategies
 from .transfer import transfer
 
 logger = logging.getLogger(__name__)
-P1_DEGREE = 2  # ∫ of products of P1 functions and their gradients: degree 2 is exact
 
 
 class Reference:
@@ -51,10 +48,8 @@ class Reference:
             return (*self.solutions[eps_value], 0.0)
         begin = time.perf_counter()
         domain = self.mesh()
-        V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
-        u_ref = transfer(start, V)
-        u_ref.name = "u_ref"
-        outcome = solve(self.cfg, domain, u_ref, eps_value)
+        u_ref = fem.Function(fem.FunctionSpace(domain.mesh, ("Lagrange", 1)), name="u_ref")
+        outcome = solve(self.cfg, domain, u_ref, eps_value, start)
         if not outcome.converged:
             logger.warning("reference N=%d at eps=%.3e did not converge: %s", self.n, eps_value, outcome.reason)
         self.solutions[eps_value] = (u_ref, outcome.converged)
@@ -65,44 +60,26 @@ class Reference:
         at eps_value (the level's eps: the eps its own energy-type error is scaled with)."""
         domain = self.mesh()
         moved = transfer(u_h, u_ref.function_space)
-        found = difference_norms(moved, u_ref)
+        found = measure.difference_norms(moved, u_ref)
         if with_contact:
-            ds_c = contact_measure_of(domain)
+            ds_c = domain.ds_c(measure.ERROR_DEGREE)  # the positive parts kink inside facets
             found.update(measure.contact_errors(moved, u_ref, eps_value, self.cfg.alpha, ds_c, found["H1"]))
         return {f"{name}_ref": value for name, value in found.items()}
 
 
-def solve(cfg, domain, u, eps_value):
-    """Newton on the level's problem with eps = eps_value, from u; u = 0 on Γ_D (data-only scenes)."""
-    V = u.function_space
-    forms = model.forms(cfg, domain, u, fem.Constant(domain.mesh, eps_value))
-    fdim = domain.mesh.topology.dim - 1
-    dofs = fem.locate_dofs_topological(V, fdim, domain.facet_tags.indices[domain.facet_tags.values == DIRICHLET])
-    bcs = [fem.dirichletbc(fem.Function(V), dofs)]
-    options = solver.petsc_options(cfg.solver, cfg.dimension, dofs=solver.global_dofs(V))
-    newton = solver.NewtonSolver(forms.F, forms.J, u, bcs, options,
-                                 test=solver.success_test(cfg.solver))
-    outcome = newton.solve()
-    newton.destroy()
-    return outcome
-
-
-def difference_norms(u_h, u):
-    """{'L2': ||u - u_h||_{L2}, 'H1': |u - u_h|_{H1}} for two P1 functions on one mesh (exact quadrature)."""
-    dx = ufl.Measure("dx", domain=u.function_space.mesh, metadata={"quadrature_degree": P1_DEGREE})
-    e = u - u_h
-    return {"L2": np.sqrt(abs(measure.integrate(e**2, dx))),
-            "H1": np.sqrt(abs(measure.integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
+def solve(cfg, domain, u, eps_value, previous):
+    """The level's problem with eps = eps_value on the reference mesh, solved into u by the study's
+    strategy from `previous` (a level's u_h: the nested guess); u = 0 on Γ_D (data-only scenes)."""
+    eps = fem.Constant(domain.mesh, eps_value)
+    forms = model.forms(cfg, domain, u, eps)
+    bcs = [model.dirichlet_condition(u.function_space, domain, None)]
+    problem = strategies.problem(forms, u, bcs, eps, eps_value, cfg.dimension)
+    # the linear floor times the level's own solve, not its reference's
+    return strategies.solve(dataclasses.replace(cfg.solver, linear_floor=False), problem, previous)
 
 
 def successive_differences(u_coarse, u_fine):
     """{'diff_L2', 'diff_H1'}: ||u_h - u_{h/2}|| with the coarser solution moved onto the finer mesh
     (exact for nested meshes): rates that need no reference solution."""
     moved = transfer(u_coarse, u_fine.function_space)
-    return {f"diff_{name}": value for name, value in difference_norms(moved, u_fine).items()}
-
-
-def contact_measure_of(domain):
-    """ds over Γ_C with the error quadrature (the positive parts kink inside facets)."""
-    return ufl.Measure("ds", domain=domain.mesh, subdomain_data=domain.facet_tags,
-                       metadata={"quadrature_degree": measure.ERROR_DEGREE})(CONTACT)
+    return {f"diff_{name}": value for name, value in measure.difference_norms(moved, u_fine).items()}

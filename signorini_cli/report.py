@@ -3,6 +3,7 @@ import csv
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from . import results
 from .rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 
 FORMATS = {"h": ".4e", "epsilon": ".3e", "time_s": ".2f"}
@@ -268,3 +269,60 @@ def title(study, cfg=None):
            "power": rf"\theta h^{{{cfg.epsilon.exponent:g}}}"}[cfg.epsilon.law]
     return (rf"{study.name}: $d = {cfg.dimension}$, $\alpha = {cfg.alpha:g}$, "
             rf"$\varepsilon = {law}$, $\theta = {cfg.epsilon.theta:g}$")
+
+
+# --- the ε → 0 studies (docs/limit.md): their tables in the terminal, sub-study reports, the figure ----
+
+def write_limit(cfg, result, named):
+    """What an ε-sweep or total-error study leaves besides its tables: each total-error sub-study's
+    rates.md/.tex (and plots), the sweep's model-error figure (plots only with output.plots); the paths."""
+    written = []
+    if cfg.study_type == "total_error":
+        for sub, levels in result.studies.values():
+            if levels:
+                study = Study(sub.study, sub.output_dir, results.table(levels))
+                written += write(study, sub, sub.output.digits, plots=sub.output.plots)
+    elif cfg.output.plots and named.get("sweep"):
+        from . import plots  # matplotlib only when plots are asked for
+        finest = max(row["N"] for row in named["sweep"])
+        rows = [row for row in named["sweep"] if row["N"] == finest]
+        written += [plots.model_error(rows, cfg.output_dir / f"model_error{suffix}") for suffix in (".png", ".pdf")]
+    return written
+
+
+def limit_summary(cfg, named, written):
+    """The terminal text of an ε-sweep or total-error study: its reference, fitted or total table."""
+    lines = [f"study {cfg.study} ({cfg.study_type}): {cfg.output_dir}"]
+    for name in ("reference", "fitted", "total"):
+        if name in named:
+            lines.append(f"\n{name}:\n{format_rows(named[name])}")
+    names = [f"{name}.csv" for name in named] + [str(path.relative_to(cfg.output_dir)) for path in written]
+    lines.append("wrote " + (", ".join(names) if len(names) <= 4 else f"{len(names)} tables and figures "
+                             "(rates.md, rates.tex, plots) in the sub-study folders"))
+    return "\n".join(lines)
+
+
+def format_rows(rows):
+    """A right-aligned text table: floats .3e, rates and fitted slopes .2f, '-' for missing values."""
+    if not rows:
+        return "(nothing solved)"
+    columns = list(rows[0])
+    cells = [[_row_cell(c, row[c]) for c in columns] for row in rows]
+    widths = [max(len(c), *(len(line[i]) for line in cells)) for i, c in enumerate(columns)]
+    lines = ["  ".join(c.rjust(w) for c, w in zip(columns, widths))]
+    lines += ["  ".join(cell.rjust(w) for cell, w in zip(line, widths)) for line in cells]
+    return "\n".join(lines)
+
+
+def _row_cell(column, value):
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "NO"
+    if column in ("alpha", "p"):
+        return f"{value:g}"
+    if column.startswith(("rate_", "fit_")) or column == "time_s":
+        return f"{value:.2f}"
+    if isinstance(value, float):
+        return f"{value:.3e}"
+    return str(value)

@@ -1,5 +1,8 @@
-"""The study's record on disk: rates.csv and study.h5, rewritten atomically after every level."""
+"""The study's record on disk, rewritten atomically after every solve: rates.csv, summary.csv,
+work_precision.csv and study.h5 for refinement and signorini studies; sweep.csv, fitted.csv and
+reference.csv (ε-sweeps) or total.csv and one folder per sub-study (total error) beside their study.h5."""
 import csv
+import datetime
 import functools
 import io
 import json
@@ -7,11 +10,14 @@ import platform
 import subprocess
 from pathlib import Path
 
+import numpy as np
+import yaml
 from mpi4py import MPI
 
-from . import files, rates
-from . import verdict
+from . import __version__, config, files, rates, verdict
+from .config import canonical, fingerprint
 
+LEVEL_STUDIES = ("refinement", "signorini")  # a list of Levels, one rate table
 SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
                 "L2", "rate_L2", "H1", "rate_H1", "time_s")
 EXTRA_COLUMNS = ("reason", "linear_its", "final_residual")
@@ -62,20 +68,24 @@ def work_precision_rows(rows):
             for norm in rates.error_columns(rows) for row in rows if row.get(norm) is not None]
 
 
-def write(cfg, levels, comm=MPI.COMM_WORLD, status=None):
-    """Write rates.csv and study.h5 (and status.txt, given a status) for the levels so far
-    (rank 0 writes, every rank waits)."""
-    rows = table(levels)
-    summary = verdict.summarize(cfg, levels)
+def write(cfg, result, comm=MPI.COMM_WORLD, status=None):
+    """Write the study's files (and status.txt, given a status) for the result so far: the Levels of a
+    refinement or signorini study, a Sweep or a Total (rank 0 writes, every rank waits); the rows of
+    its main table (rates, or the ε-sweep's / total-error table)."""
+    summary = verdict.summarize(cfg, result) if cfg.study_type in LEVEL_STUDIES else None
+    rows = main_table(cfg, result)
     if comm.rank == 0:
-        write_files(cfg, levels, rows, comm.size, status, summary)
+        write_files(cfg, result, rows, comm.size, status, summary)
     comm.barrier()
     return rows
 
 
-def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
+def write_files(cfg, result, rows, mpi_size, status=None, summary=None):
     """The writing of `write` by this rank alone, no collective: the fault path calls it on the rank
     that failed. Each file is replaced atomically; status.txt last."""
+    if cfg.study_type not in LEVEL_STUDIES:
+        return _write_limit_files(cfg, result, mpi_size, status)
+    levels = result
     summary = verdict.summarize(cfg, levels) if summary is None else summary
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
@@ -87,6 +97,117 @@ def write_files(cfg, levels, rows, mpi_size, status=None, summary=None):
     files.replace(folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status))
     if status is not None:
         files.replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
+
+
+def main_table(cfg, result):
+    """The rows of the study's main table: the rate table, or the first of limit_tables."""
+    if cfg.study_type in LEVEL_STUDIES:
+        return table(result)
+    return next(iter(limit_tables(cfg, result).values()), [])
+
+
+def _write_limit_files(cfg, result, mpi_size, status):
+    """An ε-sweep's or total-error study's CSV tables and study.h5 (a total-error study also writes each
+    sub-study's rate table in its own folder); status.txt last."""
+    if cfg.study_type == "total_error" and not isinstance(result, list):
+        for sub, levels in result.studies.values():
+            if levels:
+                write_files(sub, levels, table(levels), mpi_size)
+    named = limit_tables(cfg, result)
+    folder = cfg.output_dir
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, rows in named.items():
+        files.replace(folder / f"{name}.csv", lambda path, rows=rows: path.write_text(csv_text(rows)))
+    files.replace(folder / "study.h5", lambda path: _write_limit_h5(path, cfg, named, mpi_size, status))
+    if status is not None:
+        files.replace(folder / STATUS_FILE, lambda path: path.write_text(status + "\n"))
+
+
+def _write_limit_h5(path, cfg, named, mpi_size, status):
+    import h5py
+    with h5py.File(path, "w") as h5:
+        _write_attrs(h5, cfg, mpi_size, status)
+        h5.attrs["study_type"] = cfg.study_type
+        for name, rows in named.items():
+            _write_table(h5.create_group(name), rows)
+
+
+# --- the ε → 0 studies' tables (docs/limit.md) -------------------------------------------------------
+MODEL_ERRORS = ("L2", "H1", "L2_gamma_c", "penetration")  # of u_{ε,h} − u_{S,h} (measure.model_differences)
+SWEEP_COLUMNS = ("N", "h", "dofs", "alpha", "epsilon", "converged", "newton_its",
+                 "L2", "rate_L2", "H1", "rate_H1", "L2_gamma_c", "rate_L2_gamma_c",
+                 "penetration", "rate_penetration", "time_s", "reason")
+
+
+def limit_tables(cfg, result):
+    """The CSV tables of an ε-sweep (sweep, fitted, reference) or a total-error study (total): name -> rows
+    (none before the first solve, when the result is still the empty list the study starts from)."""
+    if isinstance(result, list):
+        return {}
+    if cfg.study_type == "epsilon_sweep":
+        return {"sweep": sweep_table(result), "fitted": fitted_table(result, cfg.limit.fit_last),
+                "reference": table(result.references)}
+    return {"total": total_table(result, cfg.limit.fit_last)}
+
+
+def sweep_table(sweep):
+    """One row per (mesh, α, ε): the differences and their rates in ε against the previous ε."""
+    rows = []
+    for group in _sweep_groups(sweep.points):
+        eps = [p.eps for p in group]
+        ok = [p.outcome.converged for p in group]
+        observed = {m: rates.observed(eps, [p.differences[m] for p in group], ok) for m in MODEL_ERRORS}
+        for k, p in enumerate(group):
+            row = {"N": p.n, "h": p.h, "dofs": p.dofs, "alpha": p.alpha, "epsilon": p.eps,
+                   "converged": p.outcome.converged, "newton_its": p.outcome.newton_its}
+            for m in MODEL_ERRORS:
+                row[m] = p.differences[m] if ok[k] else None
+                row[f"rate_{m}"] = observed[m][k]
+            row.update(time_s=p.time_s, reason=p.outcome.reason)
+            rows.append(row)
+    return rows
+
+
+def fitted_table(sweep, last):
+    """One row per (mesh, α): the least-squares slope of log(difference) against log ε over the
+    `last` smallest converged ε, for every measure."""
+    rows = []
+    for group in _sweep_groups(sweep.points):
+        eps, ok = [p.eps for p in group], [p.outcome.converged for p in group]
+        used = [p for p in group if p.outcome.converged][-last:]
+        row = {"N": group[0].n, "h": group[0].h, "alpha": group[0].alpha, "points": len(used),
+               "eps_max": used[0].eps if used else None, "eps_min": used[-1].eps if used else None}
+        for m in MODEL_ERRORS:
+            row[f"fit_{m}"] = rates.fitted(eps, [p.differences[m] for p in group], ok, last)
+        rows.append(row)
+    return rows
+
+
+def total_table(total, last):
+    """One row per sub-study: its finest level's errors against u_S, the last and the fitted rates."""
+    rows = []
+    for name, (sub, levels) in total.studies.items():
+        finest = table(levels)[-1] if levels else {}
+        vi_study = sub.study_type == "signorini"
+        row = {"study": name, "solver": "signorini" if vi_study else "compliance",
+               "alpha": None if vi_study else sub.alpha, "p": None if vi_study else sub.epsilon.exponent,
+               "levels": len(levels), "N": finest.get("N"), "h": finest.get("h"), "epsilon": finest.get("epsilon"),
+               "converged": all(lv.outcome.converged for lv in levels)}
+        for norm in NORMS:
+            row[norm] = finest.get(norm)
+            row[f"rate_{norm}"] = finest.get(f"rate_{norm}")
+            row[f"fit_{norm}"] = rates.fitted([lv.h for lv in levels], [lv.errors.get(norm) for lv in levels],
+                                              [lv.outcome.converged for lv in levels], last)
+        rows.append(row)
+    return rows
+
+
+def _sweep_groups(points):
+    """The points split into runs of one (mesh, α), in solve order."""
+    groups = {}
+    for p in points:
+        groups.setdefault((p.n, p.alpha), []).append(p)
+    return list(groups.values())
 
 
 def csv_text(rows, columns=None):
@@ -115,9 +236,8 @@ def _cell(value):
 
 def versions():
     """Versions of the package and of the numerical stack, for the record."""
-    import basix, dolfinx, ffcx, h5py, numpy, ufl
+    import basix, dolfinx, ffcx, h5py, numpy, ufl  # the record's versions: imported only when written
     from petsc4py import PETSc
-    from . import __version__
     return {"signorini": __version__, "dolfinx": dolfinx.__version__, "basix": basix.__version__,
             "ffcx": ffcx.__version__, "ufl": ufl.__version__, "h5py": h5py.__version__,
             "numpy": numpy.__version__, "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
@@ -126,33 +246,31 @@ def versions():
 
 def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
     import h5py
-    import numpy as np
-    from .config import canonical, fingerprint
     with h5py.File(path, "w") as h5:
-        h5.attrs["config"] = cfg.text
-        h5.attrs["study"] = cfg.study
-        h5.attrs["mpi_size"] = mpi_size
+        _write_attrs(h5, cfg, mpi_size, status)
         h5.attrs["levels_done"] = len(levels)
         h5.attrs["config_hash"] = fingerprint(cfg)  # --resume continues only under the same hash
         h5.attrs["config_canonical"] = json.dumps(canonical(cfg), sort_keys=True, default=str)
-        if status is not None:
-            h5.attrs["status"] = status
-        for name, version in versions().items():
-            h5.attrs[f"version_{name}"] = version
-        _write_provenance(h5, cfg, levels)
+        h5.attrs["time_total_s"] = float(sum(lv.time_s for lv in levels))
         _write_table(h5.create_group("table"), rows)
         for lv, row in zip(levels, rows):
-            _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row, np)
+            _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row)
         if summary is not None:
             verdict.write_h5(h5.create_group("verification"), summary)
 
 
-def _write_provenance(h5, cfg, levels):
-    """The resolved config (--set overrides and defaults included), git revision, total wall time."""
-    import yaml
-    from .config import to_dict
-    h5.attrs["config_resolved"] = yaml.safe_dump(to_dict(cfg), sort_keys=False)
-    h5.attrs["time_total_s"] = float(sum(lv.time_s for lv in levels))
+def _write_attrs(h5, cfg, mpi_size, status):
+    """What every study.h5 records: the config as given and resolved (--set overrides and defaults
+    included), the study, MPI size, status, versions and git revision."""
+    h5.attrs["config"] = cfg.text
+    h5.attrs["config_resolved"] = yaml.safe_dump(config.to_dict(cfg), sort_keys=False)
+    h5.attrs["study"] = cfg.study
+    h5.attrs["mpi_size"] = mpi_size
+    h5.attrs["date"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    if status is not None:
+        h5.attrs["status"] = status
+    for name, version in versions().items():
+        h5.attrs[f"version_{name}"] = version
     if git_revision():
         h5.attrs["git_revision"] = git_revision()
 
@@ -185,17 +303,17 @@ def _write_table(group, rows):
             group.create_dataset(column, data=[float("nan") if v is None else float(v) for v in values])
 
 
-def _write_level(group, lv, row, np):
+def _write_level(group, lv, row):
     for column, value in row.items():
         if value is not None:
             group.attrs[column] = value
     group.create_dataset("residuals", data=np.array(lv.outcome.residuals, dtype=float))
-    _write_solves(group, lv.outcome.steps, np)
+    _write_solves(group, lv.outcome.steps)
     for norm, value in lv.errors.items():  # raw errors, also of a level that did not converge
         group.attrs[f"measured_{norm}"] = value
 
 
-def _write_solves(group, steps, np):
+def _write_solves(group, steps):
     """One entry per SNES solve of the level (attempts, continuation steps, linear fallback), in order:
     its eps, Newton iterations and reason; `residuals` holds their histories one after the other."""
     if steps:

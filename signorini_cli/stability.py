@@ -5,7 +5,6 @@ import math
 from dolfinx import fem
 
 from . import measure, solver, verification
-from .meshes import CONTACT
 
 # the solver's own columns; `penetration` joins them unless the verification measures take it
 SOLVER_COLUMNS = ("continuation_steps", "linear_fallback", "final_correction", "condition")
@@ -30,8 +29,7 @@ def report(cfg, problem, domain, outcome, dofs):
 
 def penetration(u_h, domain):
     """max over Γ_C of [u_h]_+ (measure.penetration: a vertex value for P1), over all ranks."""
-    facets = domain.facet_tags.indices[domain.facet_tags.values == CONTACT]
-    dofs = fem.locate_dofs_topological(u_h.function_space, domain.mesh.topology.dim - 1, facets)
+    dofs = fem.locate_dofs_topological(u_h.function_space, domain.mesh.topology.dim - 1, domain.facets())
     return measure.penetration(u_h, dofs)
 
 

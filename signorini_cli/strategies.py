@@ -1,8 +1,11 @@
-"""Solving one level robustly: the initial guess (zero, or nested iteration from the previous level),
-eps-continuation, and the fallback from an iterative to a direct linear solve; `auto` combines them."""
+"""The one solver path: every nonlinear solve of the package (refinement levels, reference solutions, the
+Signorini VI, ε-sweeps) is built here, with the initial guess (zero, or nested iteration from the previous
+level), ε-continuation, the success test, the fallback from an iterative to a direct linear solve and the
+split assembly; `auto` combines them."""
 import dataclasses
 import logging
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 from dolfinx import fem
@@ -19,7 +22,9 @@ DIVERGED_CONTINUATION = "DIVERGED_MAX_CONTINUATION_STEPS"
 
 @dataclass(frozen=True)
 class Problem:
-    """One level's discrete problem; u_h holds the iterate, eps is the Constant the forms use."""
+    """One discrete problem; u_h holds the iterate, eps is the Constant the forms use (None for the
+    Signorini VI, which has no ε). With `bounds` (lower, upper PETSc vectors) it is the VI
+    lower <= u_h <= upper, solved by PETSc's reduced-space semismooth Newton (paper eq. (8))."""
     F: object
     J: object
     u_h: fem.Function
@@ -28,6 +33,12 @@ class Problem:
     eps_target: float
     dim: int
     split: object = None  # model.Split: Newton assembles the load and stiffness once per solve
+    bounds: tuple = None
+
+
+def problem(forms, u_h, bcs, eps, eps_value, dim, bounds=None):
+    """The Problem of model.Forms `forms` (the split included) at eps_value."""
+    return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds)
 
 
 def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
@@ -35,14 +46,39 @@ def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
     (or None); u_h ends as the final iterate. Returns the level's Outcome. `monitor(snes, its, fnorm)`
     sees every Newton iteration of every solve; `phases` (timing.Phases) gets the solve's times and,
     with solver.linear_floor, the level's linear floor (Outcome.floor_s)."""
-    newton = Newton(solver_cfg, problem, monitor, phases or Phases())
-    try:
+    with newton_for(solver_cfg, problem, monitor, phases) as newton:
         outcome = STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg)
         if solver_cfg.linear_floor and outcome.converged:
             outcome = dataclasses.replace(outcome, floor_s=newton.snes.linear_floor())
         return outcome
+
+
+@contextmanager
+def newton_for(solver_cfg, problem, monitor=None, phases=None):
+    """The Newton solver of `problem`, destroyed on leaving: for a sequence of solves on one problem
+    (an ε-sweep, see descend); `solve` is the one-shot form."""
+    newton = Newton(solver_cfg, problem, monitor, phases or Phases())
+    try:
+        yield newton
     finally:
         newton.destroy()
+
+
+def descend(newton, problem, eps, solver_cfg, solved_eps):
+    """Solve at `eps` from the current u_h, the solution at the larger `solved_eps`; if Newton fails and
+    the strategy continues in ε (continuation, auto), ε-continuation from solved_eps down to eps.
+    u_h ends as the last solution that converged. Returns the Outcome."""
+    problem.eps.value = eps
+    guess = problem.u_h.x.array.copy()
+    first = newton.run(eps)
+    if first.converged or solver_cfg.strategy not in ("continuation", "auto"):
+        if not first.converged:
+            _restore(problem.u_h, guess)
+        return first
+    _restore(problem.u_h, guess)
+    settings = dataclasses.replace(solver_cfg.continuation, start=solved_eps)
+    reached = continue_eps(newton, dataclasses.replace(problem, eps_target=eps), settings)
+    return combine([first, reached])
 
 
 def plain(newton, problem, previous, solver_cfg):
@@ -58,8 +94,10 @@ def nested(newton, problem, previous, solver_cfg):
 
 
 def continuation(newton, problem, previous, solver_cfg):
-    """eps-continuation from u_h = 0."""
+    """eps-continuation from u_h = 0 (plain Newton for the VI, which has no eps)."""
     newton.initial_guess(None)
+    if problem.eps is None:
+        return newton.run(None)
     return continue_eps(newton, problem, solver_cfg.continuation)
 
 
@@ -68,7 +106,7 @@ def auto(newton, problem, previous, solver_cfg):
     newton.initial_guess(previous)
     guess = problem.u_h.x.array.copy()
     first = newton.run(problem.eps_target)
-    if first.converged:
+    if first.converged or problem.eps is None:
         return first
     logger.info("Newton failed at eps=%.3g (%s): eps-continuation", problem.eps_target, first.reason)
     _restore(problem.u_h, guess)
@@ -137,12 +175,24 @@ class Newton:
 
     def __init__(self, solver_cfg, problem, monitor=None, phases=None):
         self.cfg, self.problem = solver_cfg, problem
-        dofs = solver.global_dofs(problem.u_h.function_space)
-        self.linear = solver.linear_kind(solver_cfg, problem.dim, dofs)
-        self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs,
-                                        solver.petsc_options(solver_cfg, problem.dim, dofs=dofs), monitor=monitor,
-                                        test=solver.success_test(solver_cfg), phases=phases, split=problem.split)
+        self.dofs = solver.global_dofs(problem.u_h.function_space)
+        self.linear = solver.linear_kind(solver_cfg, problem.dim, self.dofs)
+        # the VI keeps PETSc's own test of vinewtonrsls, on the reduced residual
+        test = solver.success_test(solver_cfg) if problem.bounds is None else None
+        self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs, self.options(),
+                                        monitor=monitor, test=test, phases=phases, split=problem.split)
+        if problem.bounds is not None:
+            self.snes.snes.setVariableBounds(*problem.bounds)
         self.fell_back = False
+
+    def options(self, linear=None):
+        """The PETSc options of this problem (solver.petsc_options; vinewtonrsls for the VI, the user's
+        petsc_options still last)."""
+        opts = solver.petsc_options(self.cfg, self.problem.dim, linear=linear, dofs=self.dofs)
+        if self.problem.bounds is not None:
+            opts["snes_type"] = "vinewtonrsls"
+            opts.update(dict(self.cfg.petsc_options))
+        return opts
 
     def initial_guess(self, previous):
         """u_h = 0 or the previous level's solution (initial_guess), timed as phase 'transfer'."""
@@ -155,14 +205,15 @@ class Newton:
             return self._run(eps)
 
     def _run(self, eps):
-        self.problem.eps.value = eps
+        if self.problem.eps is not None:
+            self.problem.eps.value = eps
         start = self.problem.u_h.x.array.copy()
         outcomes = [self.snes.solve()]
         if outcomes[-1].reason == solver.LINEAR_SOLVE_FAILED and self._can_fall_back():
             if self.problem.u_h.function_space.mesh.comm.rank == 0:
                 logger.warning("iterative linear solve failed at eps=%.3g: falling back to a direct solve", eps)
             self.linear, self.fell_back = "direct", True
-            self.snes.configure(solver.petsc_options(self.cfg, self.problem.dim, linear="direct"))
+            self.snes.configure(self.options(linear="direct"))
             _restore(self.problem.u_h, start)
             outcomes.append(self.snes.solve())
         outcomes = [dataclasses.replace(o, steps=((eps, o.newton_its, o.reason),)) for o in outcomes]

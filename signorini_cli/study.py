@@ -1,13 +1,17 @@
-"""The refinement loop: one solved and measured level per mesh of the family."""
+"""The study types, one path: `refinement` (one solved and measured level per mesh of the family),
+`signorini` (the same with the VI), and the Signorini limit (docs/limit.md): `epsilon_sweep` (the model
+error ||u_{ε,h} − u_{S,h}|| on fixed meshes) and `total_error` (refinement studies with ε = θ h^p beside
+the VI). run_study returns the solves; results and report write them, the cli prints."""
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
 from mpi4py import MPI
 from dolfinx import fem
 
-from . import fields, meshes, measure, model, solver, stability, strategies, timing
-from .meshes import DIRICHLET
-from . import verification
+from . import (config, fields, meshes, measure, model, solver, stability, strategies, timing, verification,
+               vi)
+from .meshes import FACES_2D, FACES_3D
 
 
 @dataclass
@@ -27,12 +31,15 @@ class Level:
 
 
 def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
-    """Solve every level of `cfg`; call on_level(levels_so_far) after each; return the levels.
+    """Run the study of type cfg.study_type; call on_level(result_so_far) after every solve; return
+    the result: a list of Levels (refinement, signorini), a Sweep or a Total.
     `monitor(snes, its, fnorm)`, if given, is called at every Newton iteration (progress).
-    `done`: the levels a resumed study already has, kept as they are and not solved again."""
-    if cfg.study_type != "refinement":  # the Signorini limit studies (docs/limit.md)
-        from . import limit
-        return limit.run_study(cfg, on_level, comm, monitor)
+    `done`: the levels a resumed refinement study already has, kept as they are and not solved again."""
+    return STUDY_TYPES[cfg.study_type](cfg, on_level, comm, monitor, done)
+
+
+def run_refinement(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+    """Solve every level of `cfg` (after the levels `done`); on_level(levels_so_far) after each."""
     levels = list(done)
     if done and not done[-1].outcome.converged and cfg.solver.on_failure == "stop":
         return levels  # the study had already stopped there
@@ -84,8 +91,8 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     eps = fem.Constant(domain.mesh, eps_value)
     u_h = fem.Function(V, name="u_h")
     forms = model.forms(cfg, domain, u_h, eps)
-    bcs = [dirichlet_condition(V, domain, forms.u_exact)]
-    problem = strategies.Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, cfg.dimension, forms.split)
+    bcs = [model.dirichlet_condition(V, domain, forms.u_exact)]
+    problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
     dofs = solver.global_dofs(V)
     extra = dict(domain.columns, **stability.report(cfg, problem, domain, outcome, dofs))
@@ -117,11 +124,149 @@ def timing_columns(outcome, phases, comm, mesh_peak_mb):
     return columns
 
 
-def dirichlet_condition(V, domain, u_exact):
-    """u = u_ex on Γ_D for manufactured scenes (u_ex vanishes there in the paper's setting), else 0."""
-    facets = domain.facet_tags.indices[domain.facet_tags.values == DIRICHLET]
-    dofs = fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, facets)
-    u_D = fem.Function(V)
+# --- the Signorini VI as a refinement study (paper eq. (8), docs/limit.md) ---------------------------
+
+def run_signorini(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+    """The VI refinement study: one Level per mesh, the SPEC rate table with ε = 0; each level starts
+    from the last converged one as the strategy says (nested iteration)."""
+    levels, previous = [], None
+    for index, n in enumerate(cfg.mesh.refinements):
+        start = time.perf_counter()
+        level, u_h = signorini_level(cfg, index, meshes.build(cfg.mesh, cfg.contact, n, comm), start,
+                                     previous, monitor)
+        levels.append(level)
+        previous = u_h if level.outcome.converged else previous
+        if on_level is not None:
+            on_level(levels)
+        if not level.outcome.converged and cfg.solver.on_failure == "stop":
+            break
+    return levels
+
+
+def signorini_level(cfg, index, domain, start, previous=None, monitor=None):
+    """(Level, u_h): the VI on `domain`, measured against u_S if given, with its contact state."""
+    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
+    u_h = fem.Function(V, name="u_h")
+    u_exact = model.exact_solution(cfg, domain.mesh, None)
+    bc = model.dirichlet_condition(V, domain, u_exact)
+    outcome, forms = vi.solve(cfg, domain, u_h, bc, previous, monitor)
+    errors = measure.errors(u_h, u_exact) if u_exact is not None else {}
+    state = vi.contact_state(forms, u_h, domain, bc)
+    extra = {"contact_nodes": state.nodes, "contact_measure": state.measure,
+             "contact_force": state.force, "pressure_max": state.pressure_max}
     if u_exact is not None:
-        u_D.interpolate(fem.Expression(u_exact, V.element.interpolation_points()))
-    return fem.dirichletbc(u_D, dofs)
+        face = (FACES_2D if cfg.dimension == 2 else FACES_3D)[cfg.contact]
+        extra["pressure_L2"] = vi.pressure_error(forms, u_h, domain, bc, face)
+    elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+    dofs = solver.global_dofs(V)
+    return Level(index, domain.n, domain.h, dofs, 0.0, outcome, errors, elapsed, extra), u_h
+
+
+# --- ε-sweeps: the model error on fixed meshes (paper Lemma 2.5) ----------------------------------
+
+@dataclass
+class Point:
+    """One compliance solve of an ε-sweep, measured against the mesh's discrete Signorini solution."""
+    n: int
+    h: float
+    dofs: int
+    alpha: float
+    eps: float
+    outcome: solver.Outcome
+    differences: dict
+    time_s: float
+
+
+@dataclass
+class Sweep:
+    """An ε-sweep: the VI reference Level per mesh and the Points; iterating gives every solve."""
+    references: list
+    points: list
+
+    def __iter__(self):
+        return iter(self.references + self.points)
+
+
+def run_sweep(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+    """For every mesh: the VI's u_{S,h}, then for every α the compliance u_{ε,h} down the ε list."""
+    sweep = Sweep([], [])
+    for index, n in enumerate(cfg.mesh.refinements):
+        start = time.perf_counter()
+        domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
+        reference, u_S = signorini_level(cfg, index, domain, start)
+        sweep.references.append(reference)
+        for alpha in cfg.limit.alpha:
+            for point in sweep_alpha(cfg, domain, u_S, alpha):
+                sweep.points.append(point)
+                if on_level is not None:
+                    on_level(sweep)
+    return sweep
+
+
+def sweep_alpha(cfg, domain, u_S, alpha):
+    """Compliance solutions for decreasing ε on one mesh, each from the last converged one (strategies.descend)."""
+    V = u_S.function_space
+    eps = fem.Constant(domain.mesh, cfg.limit.epsilon[0])
+    u_h = fem.Function(V, name="u_eps_h")
+    forms = model.forms(dataclasses.replace(cfg, alpha=alpha), domain, u_h, eps)
+    bc = model.dirichlet_condition(V, domain, forms.u_exact)
+    problem = strategies.problem(forms, u_h, [bc], eps, cfg.limit.epsilon[0], cfg.dimension)
+    gamma_c_dofs = fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, domain.facets())
+    solved = cfg.limit.epsilon[0]
+    with strategies.newton_for(cfg.solver, problem) as newton:
+        for value in cfg.limit.epsilon:
+            start = time.perf_counter()
+            outcome = strategies.descend(newton, problem, value, cfg.solver, solved)
+            solved = value if outcome.converged else solved
+            found = measure.model_differences(u_h, u_S, domain.ds_c(measure.P1_DEGREE), gamma_c_dofs)
+            elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+            yield Point(domain.n, domain.h, solver.global_dofs(V), alpha, value, outcome, found, elapsed)
+
+
+# --- total error: refinement studies with ε = θ h^p beside the VI --------------------------------
+
+@dataclass
+class Total:
+    """A total-error study: sub-study name -> (config, levels); iterating gives every level."""
+    studies: dict
+
+    def __iter__(self):
+        return (level for _, levels in self.studies.values() for level in levels)
+
+
+def run_total(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+    """A refinement study with ε = θ h^p for every α and p, and the same study by the VI, side by side."""
+    total = Total({})
+    for name, sub in sub_studies(cfg):
+        levels = []
+        total.studies[name] = (sub, levels)
+
+        def record(found, levels=levels):
+            levels[:] = found
+            if on_level is not None:
+                on_level(total)
+
+        run_study(sub, on_level=record, comm=comm)
+    return total
+
+
+def sub_studies(cfg):
+    """(name, config) of every sub-study of a total-error study: alpha<α>-p<p> and signorini (the VI)."""
+    subs = []
+    for alpha in cfg.limit.alpha:
+        for p in cfg.limit.exponent:
+            name = f"alpha{alpha:g}-p{p:g}"
+            epsilon = config.Epsilon("power", cfg.limit.theta, p)
+            subs.append((name, _sub_study(cfg, name, "refinement", alpha=alpha, epsilon=epsilon)))
+    subs.append(("signorini", _sub_study(cfg, "signorini", "signorini")))
+    return subs
+
+
+def _sub_study(cfg, name, study_type, **changes):
+    """A plain study of its own type, written to <output>/<study>/<name>/."""
+    output = dataclasses.replace(cfg.output, dir=str(cfg.output_dir))
+    return dataclasses.replace(cfg, study=name, study_type=study_type, limit=None, output=output, **changes)
+
+
+STUDY_TYPES = {"refinement": run_refinement, "signorini": run_signorini, "epsilon_sweep": run_sweep,
+               "total_error": run_total}

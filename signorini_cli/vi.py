@@ -1,6 +1,5 @@
 """The discrete Signorini problem (paper eq. (8)) on the same P1 space: u_h <= 0 at the Γ_C nodes,
 solved by PETSc's reduced-space semismooth Newton (vinewtonrsls) with variable bounds."""
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -11,8 +10,7 @@ from petsc4py import PETSc
 from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
 
-from . import measure, meshes, model, solver
-from .meshes import CONTACT
+from . import model, strategies
 
 # A Γ_C node is in contact when its bound is active: vinewtonrsls puts active nodes exactly on the
 # bound (measured on the manufactured u_S, N = 16..256: contact nodes are 0.0, the free node nearest to
@@ -37,28 +35,26 @@ def forms(cfg, domain, u_h):
     u_exact = model.exact_solution(cfg, msh, None)  # validated: a Signorini solution has no eps
     f, _ = model.data(cfg, msh, None, u_exact, ufl.FacetNormal(msh))  # g = 0: homogeneous contact
     F = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * dx - f * v * dx
-    return model.Forms(F, ufl.derivative(F, u_h, du), u_exact, _ds_c(domain))
+    return model.Forms(F, ufl.derivative(F, u_h, du), u_exact, domain.ds_c(model.QUADRATURE_DEGREE))
 
 
-def petsc_options(solver_cfg, dim):
-    """The level's Newton options with SNES switched to vinewtonrsls; user petsc_options still win."""
-    opts = solver.petsc_options(solver_cfg, dim)
-    opts["snes_type"] = "vinewtonrsls"
-    opts.update(dict(solver_cfg.petsc_options))
-    return opts
-
-
-def solve(cfg, domain, u_h, bc, monitor=None):
-    """Solve the VI for u_h (its values are the initial guess); return (Outcome, Forms)."""
+def problem(cfg, domain, u_h, bc):
+    """The VI as a strategies.Problem: the forms without contact, u_h <= 0 at the Γ_C nodes as bounds
+    (vinewtonrsls; the user's petsc_options still win). Returns (Problem, Forms)."""
     forms_ = forms(cfg, domain, u_h)
-    newton = solver.NewtonSolver(forms_.F, forms_.J, u_h, [bc], petsc_options(cfg.solver, cfg.dimension),
-                                 monitor=monitor)
     lower, upper = bounds(u_h.function_space, domain, bc)
-    newton.snes.setVariableBounds(lower, upper)
-    outcome = newton.solve()
-    newton.destroy()
-    lower.destroy()
-    upper.destroy()
+    return strategies.problem(forms_, u_h, [bc], None, 0.0, cfg.dimension, bounds=(lower, upper)), forms_
+
+
+def solve(cfg, domain, u_h, bc, previous=None, monitor=None):
+    """Solve the VI for u_h by the configured strategy, `previous` being the last level's solution (the
+    nested guess) or None; return (Outcome, Forms)."""
+    vi_problem, forms_ = problem(cfg, domain, u_h, bc)
+    try:
+        outcome = strategies.solve(cfg.solver, vi_problem, previous, monitor)
+    finally:
+        for bound in vi_problem.bounds:
+            bound.destroy()
     return outcome, forms_
 
 
@@ -77,8 +73,7 @@ def bounds(V, domain, bc):
 
 def contact_dofs(V, domain):
     """Local indices (owned and ghost) of the dofs on Γ_C."""
-    facets = domain.facet_tags.indices[domain.facet_tags.values == CONTACT]
-    return fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, facets)
+    return fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, domain.facets())
 
 
 def contact_state(forms_, u_h, domain, bc):
@@ -119,38 +114,6 @@ def pressure_error(forms_, u_h, domain, bc, face):
     nodes, lam, weight = nodal_pressure(forms_, u_h, domain, bc)
     local = float(np.sum(weight * (lam / weight - p_exact.x.array[nodes]) ** 2))
     return float(np.sqrt(domain.mesh.comm.allreduce(local, op=MPI.SUM)))
-
-
-def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None):
-    """One level of a `study_type: signorini` refinement study: the VI solved and measured."""
-    start = time.perf_counter()
-    level, _ = reference(cfg, index, meshes.build(cfg.mesh, cfg.contact, n, comm), start, monitor)
-    return level
-
-
-def reference(cfg, index, domain, start, monitor=None):
-    """(Level, u_h): the VI on `domain`, measured against u_S if given, with its contact state."""
-    from .study import Level, dirichlet_condition
-    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
-    u_h = fem.Function(V, name="u_h")
-    u_exact = model.exact_solution(cfg, domain.mesh, None)
-    bc = dirichlet_condition(V, domain, u_exact)
-    outcome, forms_ = solve(cfg, domain, u_h, bc, monitor)
-    errors = measure.errors(u_h, u_exact) if u_exact is not None else {}
-    state = contact_state(forms_, u_h, domain, bc)
-    extra = {"contact_nodes": state.nodes, "contact_measure": state.measure,
-             "contact_force": state.force, "pressure_max": state.pressure_max}
-    if u_exact is not None:
-        face = (meshes.FACES_2D if cfg.dimension == 2 else meshes.FACES_3D)[cfg.contact]
-        extra["pressure_L2"] = pressure_error(forms_, u_h, domain, bc, face)
-    elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
-    dofs = solver.global_dofs(V)
-    return Level(index, domain.n, domain.h, dofs, 0.0, outcome, errors, elapsed, extra), u_h
-
-
-def _ds_c(domain):
-    metadata = {"quadrature_degree": model.QUADRATURE_DEGREE}
-    return ufl.Measure("ds", domain=domain.mesh, subdomain_data=domain.facet_tags, metadata=metadata)(CONTACT)
 
 
 def _assembled(form):

@@ -8,7 +8,7 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from signorini_cli import cli, config, limit, meshes, results
+from signorini_cli import cli, config, meshes, results, study
 from conftest import BASE, U_SIGNORINI, merge
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -65,21 +65,21 @@ def sweep_config(tmp_path, **changes):
 
 def run_sweep(tmp_path, comm=MPI.COMM_WORLD, **changes):
     cfg = sweep_config(tmp_path, **changes)
-    sweep = limit.run_study(cfg, comm=comm)
+    sweep = study.run_study(cfg, comm=comm)
     assert all(solve.outcome.converged for solve in sweep)
     return cfg, sweep
 
 
 def test_sweep_decreases_monotonically_small_mesh(tmp_path):
     cfg, sweep = run_sweep(tmp_path)
-    rows = limit.sweep_table(sweep)
+    rows = results.sweep_table(sweep)
     for alpha in cfg.limit.alpha:
         group = [row for row in rows if row["alpha"] == alpha]
         assert [row["epsilon"] for row in group] == list(cfg.limit.epsilon)
-        for m in limit.MEASURES:
+        for m in results.MODEL_ERRORS:
             values = [row[m] for row in group]
             assert all(b < a for a, b in zip(values, values[1:])), (alpha, m, values)
-    fitted = {row["alpha"]: row for row in limit.fitted_table(sweep, cfg.limit.fit_last)}
+    fitted = {row["alpha"]: row for row in results.fitted_table(sweep, cfg.limit.fit_last)}
     # N=8, ε = 1e-4..1e-6: measured H1 slopes 0.99, 0.44, 0.25 for α = 1, 2, 3 (→ 1/α as ε → 0,
     # later for larger α: docs/limit.md); 0.05 = the α = 1 margin, the order in α is the finding
     assert fitted[1.0]["fit_H1"] == pytest.approx(1.0, abs=0.05)
@@ -94,7 +94,7 @@ def test_sweep_two_ranks_match_one(tmp_path):
     _, serial = run_sweep(tmp_path, comm=MPI.COMM_SELF)
     for p, s in zip(parallel.points, serial.points):
         assert (p.alpha, p.eps) == (s.alpha, s.eps)
-        for m in limit.MEASURES:
+        for m in results.MODEL_ERRORS:
             assert p.differences[m] == pytest.approx(s.differences[m], rel=RTOL)
 
 
@@ -106,7 +106,7 @@ def test_sweep_writes_documented_tables(tmp_path, capsys):
     folder = tmp_path / "out" / "t"
     with open(folder / "sweep.csv") as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == list(limit.SWEEP_COLUMNS)  # README: Results of the ε → 0 studies
+    assert list(rows[0]) == list(results.SWEEP_COLUMNS)  # README: Results of the ε → 0 studies
     assert len(rows) == 3 * len(SWEEP["limit"]["epsilon"]) and rows[0]["rate_H1"] == "" and float(rows[1]["rate_H1"]) > 0
     with open(folder / "fitted.csv") as f:
         assert [row["alpha"] for row in csv.DictReader(f)] == ["1.0", "2.0", "3.0"]
@@ -126,7 +126,7 @@ def test_total_error_writes_spec_tables(make_config):
     cfg = make_config(study_type="total_error", alpha=None, epsilon=None,
                       problem={"exact": U_SIGNORINI, "exact_solves": "signorini"},
                       limit={"alpha": [2], "exponent": [1, 2]})
-    total = limit.run_study(cfg, on_level=lambda done: limit.write(cfg, done))
+    total = study.run_study(cfg, on_level=lambda done: results.write(cfg, done))
     assert all(level.outcome.converged for level in total)
     assert list(total.studies) == ["alpha2-p1", "alpha2-p2", "signorini"]
     for name in total.studies:

@@ -63,7 +63,7 @@ def test_positive_fraction(values, fraction):
 def test_contact_force_and_errors_of_a_known_function():
     domain = meshes.build(config.Mesh("unit_square"), "bottom", 4, MPI.COMM_SELF)
     u = p1(domain, lambda x: x[0])
-    ds_c = reference.contact_measure_of(domain)
+    ds_c = domain.ds_c(measure.ERROR_DEGREE)
     # (1/eps) ∫_0^1 x^2 dx = 1/(3 eps): a polynomial the degree-8 quadrature integrates exactly
     assert measure.contact_force(u, 0.5, 2.0, ds_c) == pytest.approx(2 / 3, rel=1e-12)
     x = ufl.SpatialCoordinate(domain.mesh)

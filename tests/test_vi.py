@@ -24,7 +24,7 @@ def solved(cfg, n, comm):
     domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
     u_h = fem.Function(V)
-    bc = study.dirichlet_condition(V, domain, model.exact_solution(cfg, domain.mesh, None))
+    bc = model.dirichlet_condition(V, domain, model.exact_solution(cfg, domain.mesh, None))
     outcome, forms_ = vi.solve(cfg, domain, u_h, bc)
     assert outcome.converged
     return domain, u_h, bc, forms_

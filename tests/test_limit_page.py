@@ -1,7 +1,11 @@
 """docs/limit.md is written from runs: every section, the plot (headless), nothing typed in."""
 import yaml
 
-from signorini_cli import cli, limit_docs
+import runpy
+import sys
+from pathlib import Path
+
+from signorini_cli import cli
 from conftest import BASE, U_SIGNORINI, merge
 
 SIGNORINI = {"alpha": None, "epsilon": None, "problem": {"exact": U_SIGNORINI, "exact_solves": "signorini"},
@@ -15,6 +19,11 @@ STUDIES = {
 }
 
 
+SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
+sys.path.insert(0, str(SCRIPTS))  # the page generators share scripts/provenance.py
+limit_page = runpy.run_path(str(SCRIPTS / "limit_page.py"))
+
+
 def test_page_from_small_runs(tmp_path):
     paths = []
     for name, changes in STUDIES.items():
@@ -23,10 +32,10 @@ def test_page_from_small_runs(tmp_path):
         assert cli.main(["run", str(path), "--output", str(tmp_path / "results")]) == cli.EXIT_OK
         paths.append(str(path))
     out = tmp_path / "docs" / "limit.md"
-    assert limit_docs.main(paths + ["--output", str(tmp_path / "results"), "--out", str(out)]) == 0
+    assert limit_page["main"](paths + ["--output", str(tmp_path / "results"), "--out", str(out)]) == 0
     page = out.read_text()
     for heading in ("## 1. The discrete Signorini problem", "## 2. The model error", "## 3. The total error"):
         assert heading in page
     assert "| alpha2-p1 | 2 | 1 |" in page and "| signorini | – | – |" in page
     assert "Decreasing at every step for every α, mesh and measure: yes" in page
-    assert (out.parent / limit_docs.PLOT).stat().st_size > 10_000  # a rendered PNG, through Agg
+    assert (out.parent / limit_page["PLOT"]).stat().st_size > 10_000  # a rendered PNG, through Agg
