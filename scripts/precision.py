@@ -12,7 +12,7 @@ from pathlib import Path
 
 import yaml
 
-from signorini_cli import cli, limit, rates
+from signorini_cli import cli, rates
 
 ROOT = Path(__file__).resolve().parent.parent
 AGREE = 1e-6  # the issue's bound: the algebraic error of a reported quantity <= 1e-6 of it
@@ -64,18 +64,12 @@ def _number(text):
         return {"true": True, "false": False}.get(text, text)
 
 
-def error_columns(rows):
-    """The measured quantities of a table: the norms with a rate column, and the ε-sweep's differences."""
-    columns = rates.error_columns(rows)
-    return columns + [m for m in limit.MEASURES if rows and m in rows[0] and m not in columns]
-
-
 def deviations(default, tight):
     """(table, row, column, default value, tight value, relative difference) of every error entry."""
     found = []
     for name, rows in tight.items():
         for i, (a, b) in enumerate(zip(default.get(name, []), rows)):
-            for column in error_columns(rows):
+            for column in rates.error_columns(rows):
                 x, y = a.get(column), b.get(column)
                 if isinstance(x, float) and isinstance(y, float) and not (math.isnan(x) and math.isnan(y)):
                     found.append((name, i, column, x, y, relative(x, y)))

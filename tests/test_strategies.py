@@ -44,7 +44,8 @@ def test_nested_starts_at_solution_two_ranks(make_config):
 
 
 def test_plain_needs_more_newton_than_nested(make_config):
-    runs = {strategy: study.run_study(make_config(**dict(P1_EXACT, solver={"stol": 0, "polish": 0, "strategy": strategy})),
+    solvers = {strategy: {"stol": 0, "polish": 0, "strategy": strategy} for strategy in ("plain", "nested")}
+    runs = {strategy: study.run_study(make_config(**dict(P1_EXACT, solver=solvers[strategy])),
                                       comm=MPI.COMM_SELF) for strategy in ("plain", "nested")}
     assert all(lv.outcome.converged for levels in runs.values() for lv in levels)
     # level 0 has no previous level: both start from zero and do the same Newton steps
