@@ -359,16 +359,16 @@ LIMIT_LEVELS = {2: "[16, 32]", 3: "[4, 8]"}
 TENDS_SLOPE = 0.1
 
 
-def rule_runs(out):
-    """Each case (d, α) at each constant ε with each contact rule: {(d, α, ε, rule): rows}."""
+def rule_runs(out, cases=RULE_CASES, eps_values=RULE_EPS, levels=RULE_LEVELS):
+    """Each case (d, α) at each ε with each contact rule: {(d, α, ε, rule): rows}."""
     found = {}
-    for dim, alpha in RULE_CASES:
-        for eps in RULE_EPS:
+    for dim, alpha in cases:
+        for eps in eps_values:
             for rule in RULES:
                 law = ["epsilon.law=theta_h", "epsilon.theta=1.0"] if eps == "h" else \
                     ["epsilon.law=constant", f"epsilon.theta={eps}"]
                 base = law + [f"alpha={alpha}", "output.plots=false",
-                        f"mesh.refinements={RULE_LEVELS[dim]}", f"contact_quadrature={rule}"]
+                        f"mesh.refinements={levels[dim]}", f"contact_quadrature={rule}"]
                 name = f"d{dim}-alpha{alpha}-eps{eps}-{rule}"
                 found[(dim, alpha, eps, rule)] = run(RULE_CONFIGS[dim], out / name, base)[1]
     return found
