@@ -407,7 +407,9 @@ class NewtonSolver:
         self._confirmed = None
         if self.line_search and step is not None:
             self._full = (self._full[1], self._full_step(snes.getSolution()))
-        previous = self._previous if all(self._full) else None  # (C) after two full steps only
+        # (C) and the polish after two full steps only; newtontr's steps near a root are its full Newton
+        # directions (the radius no longer cuts them), and (C) needs newtonls's simplified correction
+        previous = self._previous if all(self._full) or not self.line_search else None
         correction = self._simplified_correction if self.line_search else None
         reason = self._decide(its, fnorm, xnorm if its > 0 else self.x.norm(), step, previous, correction)
         self._previous = step

@@ -127,6 +127,42 @@ def test_success_nan_inf_diverge(norms):
     assert TEST(1, **norms) == solver.DIVERGED_NAN
 
 
+def test_polished_by_the_quadratic_model():
+    # Θ = 1e-6 / 1e-2 = 1e-4: predicted error Θ^2 * 1e-6 = 1e-14 <= POLISH_TOL (1e-13) * ||u|| = 1e-13
+    assert TEST.polished(1e-6, 1e-2, 1.0)
+    # Θ = 1e-3: predicted 1e-12 > 1e-13, one more step
+    assert not TEST.polished(1e-6, 1e-3, 1.0)
+    # a step half the previous or more: the steps stopped contracting (round-off floor)
+    assert TEST.polished(1e-15, 2e-15, 1.0) and TEST.polished(3e-15, 2e-15, 1.0)
+    # no previous full step: no prediction
+    assert not TEST.polished(1e-20, None, 1.0)
+
+
+def check_polish_steps(comm, make_config):
+    # α = 2, ε = h (the demo), N = 4, 8, 16, against polish = 0, which stops at the success test
+    polished = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}), comm=comm)
+    plain = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}, solver={"polish": 0}), comm=comm)
+    assert all(lv.outcome.converged and lv.outcome.correction is not None for lv in polished + plain)
+    # at most solver.polish (3) Newton steps per level, none where the success test passed late enough
+    # (observed 1, 1, 0: at N = 16 the quadratic model already predicts an error below 1e-13 ||u||)
+    extra = [p.outcome.newton_its - q.outcome.newton_its for p, q in zip(polished, plain)]
+    assert all(0 <= e <= 3 for e in extra) and sum(extra) >= 1
+    # the same solution to the 1e-6, the polish moving the error by what stol allowed (observed
+    # 3.4e-10 and 1.3e-8 on the levels it polished)
+    for p, q in zip(polished, plain):
+        assert p.errors["L2"] == pytest.approx(q.errors["L2"], rel=1e-6)
+
+
+def test_polish_steps_serial(make_config):
+    check_polish_steps(MPI.COMM_SELF, make_config)
+
+
+@pytest.mark.mpi
+def test_polish_steps_two_ranks(make_config):
+    assert MPI.COMM_WORLD.size == 2
+    check_polish_steps(MPI.COMM_WORLD, make_config)
+
+
 def test_success_max_it():
     assert TEST(50, 1.0, 1.0, step=1.0) == solver.DIVERGED_MAX_IT
     assert TEST(50, 1e-11, 1.0) == solver.CONVERGED_RESIDUAL  # convergence wins on the last iteration
