@@ -404,7 +404,8 @@ def rule_case_table(found, dim, alpha):
 
 def gap_summary(found):
     """The largest gap of each rule to the exact one, by case and class of h/ε."""
-    header = ["d, α", "rule"] + [f"largest gap, {lo:g} < h/ε ≤ {hi:g}" for lo, hi in H_OVER_EPS] + \
+    header = ["d, α", "rule"] + [f"largest gap, h/ε > {lo:g}" if hi == math.inf else
+                                 f"largest gap, {lo:g} < h/ε ≤ {hi:g}" for lo, hi in H_OVER_EPS] + \
         ["levels not converged"]
     lines = []
     for dim, alpha in RULE_CASES:
@@ -447,18 +448,19 @@ def rules_section(found):
     lines = ["## The contact term: exact integration against the vertex rule and a Gauss rule", "",
              "The compliance term (1/ε)∫_Γc [u_h]_+^α v of the P1 solution, integrated three ways "
              "(`contact_quadrature`): `exact` (the default: the integral of the weak form, cut at the zero of "
-             "u_h on each Γ_C facet), `vertex` (the lumped, nodal penalty: the trapezoidal rule on each facet, "
-             "common in contact codes) and `6` (a Gauss rule of degree 6, the product's rule before issue 17). "
+             "u_h on each Γ_C facet), `vertex` (the lumped, nodal penalty common in contact codes: weights |F|/d at "
+             "the d vertices of each facet F) and `6` (a Gauss rule of degree 6, the product's rule before issue 17). "
              "ε = h (the paper's regime, h/ε = 1) and constant ε from 1e-2 to 1e-14; 2-D: u = sin(2πx)(1−y)² on N = " + RULE_LEVELS[2] +
              ", 3-D: u = sin(2πx)sin(πy)(1−z)² on N = " + RULE_LEVELS[3] + ". 'gap' is |L2(rule) − L2(exact)| / "
              "L2(exact) on the same level; 'max [u_h]_+' the penetration, a vertex value.", "",
              summary, "",
              f"Levels of the exact rule that did not converge: {exact_failed}. {independent_check(found)}", "",
-             "Why they part: the rules agree on facets where u_h keeps one sign (there [u_h]_+^α is u_h^α, a "
-             "polynomial the Gauss rule integrates exactly for integer α ≤ 11; the vertex rule still lumps it), "
-             "and differ on facets where u_h changes sign, where [u_h]_+^α has a kink. The difference of the "
+             "Why they part: on facets where u_h keeps one sign, [u_h]_+^α v is 0 or u_h^α v, for integer α a "
+             "polynomial of degree α + 1 that the degree-6 rule integrates exactly (α ≤ 5), while the vertex rule "
+             "lumps it (an O(h²) relative change, as mass lumping); on facets where u_h changes sign [u_h]_+^α "
+             "has a kink that no fixed rule integrates exactly. The difference of the "
              "integrals is a perturbation of the equations multiplied by 1/ε, against a stiffness of order 1 "
-             "per unit length of Γ_C: its effect on u_h grows with h/ε. The paper's estimates assume h/ε bounded "
+             "per unit length of Γ_C: its effect on u_h can grow with h/ε, and the classes above measure how much it does. The paper's estimates assume h/ε bounded "
              "(ε ≳ h); the first class above is that regime, the last the one where the stiffness of the penalty "
              "rows dominates and the rule decides the constraint u_h meets on Γ_C (next section)."]
     for dim, alpha in RULE_CASES:
