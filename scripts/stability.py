@@ -386,7 +386,8 @@ def gap(rows, exact_rows):
 
 def rule_case_table(found, dim, alpha):
     """One row per (ε, level): each rule's L2, its rate, Newton its and penetration, and the gaps."""
-    header = ["ε", "N", "h/ε"] + [f"{rule}: {col}" for rule in RULES for col in ("L2", "rate", "its", "max [u_h]_+")] + \
+    columns = ("L2", "rate", "its", "max [u_h]_+")
+    header = ["ε", "N", "h/ε"] + [f"{rule}: {col}" for rule in RULES for col in columns] + \
         [f"gap {rule}" for rule in RULES[1:]]
     lines = []
     for eps in RULE_EPS:
@@ -450,9 +451,9 @@ def rules_section(found):
              "(`contact_quadrature`): `exact` (the default: the integral of the weak form, cut at the zero of "
              "u_h on each Γ_C facet), `vertex` (the lumped, nodal penalty common in contact codes: weights |F|/d at "
              "the d vertices of each facet F) and `6` (a Gauss rule of degree 6, the product's rule before issue 17). "
-             "ε = h (the paper's regime, h/ε = 1) and constant ε from 1e-2 to 1e-14; 2-D: u = sin(2πx)(1−y)² on N = " + RULE_LEVELS[2] +
-             ", 3-D: u = sin(2πx)sin(πy)(1−z)² on N = " + RULE_LEVELS[3] + ". 'gap' is |L2(rule) − L2(exact)| / "
-             "L2(exact) on the same level; 'max [u_h]_+' the penetration, a vertex value.", "",
+             "ε = h (the paper's regime, h/ε = 1) and constant ε from 1e-2 to 1e-14; 2-D: u = sin(2πx)(1−y)² "
+             "on N = " + RULE_LEVELS[2] + ", 3-D: u = sin(2πx)sin(πy)(1−z)² on N = " + RULE_LEVELS[3] +
+             ". 'gap' is |L2(rule) − L2(exact)| / L2(exact) on the same level; 'max [u_h]_+' the penetration, a vertex value.", "",
              summary, "",
              f"Levels of the exact rule that did not converge: {exact_failed}. {independent_check(found)}", "",
              "Why they part: on facets where u_h keeps one sign, [u_h]_+^α v is 0 or u_h^α v, for integer α a "
@@ -460,7 +461,8 @@ def rules_section(found):
              "lumps it (an O(h²) relative change, as mass lumping); on facets where u_h changes sign [u_h]_+^α "
              "has a kink that no fixed rule integrates exactly. The difference of the "
              "integrals is a perturbation of the equations multiplied by 1/ε, against a stiffness of order 1 "
-             "per unit length of Γ_C: its effect on u_h can grow with h/ε, and the classes above measure how much it does. The paper's estimates assume h/ε bounded "
+             "per unit length of Γ_C: its effect on u_h can grow with h/ε, and the classes above measure how "
+             "much it does. The paper's estimates assume h/ε bounded "
              "(ε ≳ h); the first class above is that regime, the last the one where the stiffness of the penalty "
              "rows dominates and the rule decides the constraint u_h meets on Γ_C (next section)."]
     for dim, alpha in RULE_CASES:
@@ -477,8 +479,8 @@ def limit_runs(out):
     found = {}
     for dim, path in ((2, LIMIT_2D), (3, path_3d)):
         for rule in RULES:
-            base = [f"limit.epsilon={json.dumps(LIMIT_EPS)}", f"mesh.refinements={LIMIT_LEVELS[dim]}", "output.plots=false",
-                    f"contact_quadrature={rule}"]
+            base = [f"limit.epsilon={json.dumps(LIMIT_EPS)}", f"mesh.refinements={LIMIT_LEVELS[dim]}",
+                    "output.plots=false", f"contact_quadrature={rule}"]
             found[(dim, rule)] = run_tables(path, out / f"d{dim}-{rule}", base)[1]
     return found
 
@@ -551,9 +553,9 @@ def header(out):
                       f"`scripts/stability.py` on {cpu}, {os.cpu_count()} cores, 1 MPI rank.", "",
                       "How a level is solved and when it counts as converged: README.md, *Robust solves*. In short: "
                       "`strategy: auto` starts each level from the previous level's solution (nested iteration) and "
-                      "falls back to ε-continuation when Newton fails; a solve succeeds when ‖F‖ ≤ rtol · ‖load "
-                      "without penalty‖, or when the full Newton correction is ≤ stol · ‖u_h‖ (directly, or predicted "
-                      "by the quadratic model and confirmed by a simplified Newton correction); then up to "
+                      "falls back to ε-continuation when Newton fails; a solve succeeds when ‖F‖ ≤ rtol · "
+                      "‖load without penalty‖, or when the full Newton correction is ≤ stol · ‖u_h‖ (directly, or "
+                      "predicted by the quadratic model and confirmed by a simplified Newton correction); then up to "
                       "`solver.polish` more Newton steps bring the predicted error below 1e-13 ‖u_h‖ (or to the "
                       "round-off floor), so that the algebraic error of every reported error stays below 1e-6 of it "
                       "(`make precision`)."])
