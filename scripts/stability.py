@@ -453,7 +453,8 @@ def rules_section(found):
              "the d vertices of each facet F) and `6` (a Gauss rule of degree 6, the product's rule before issue 17). "
              "ε = h (the paper's regime, h/ε = 1) and constant ε from 1e-2 to 1e-14; 2-D: u = sin(2πx)(1−y)² "
              "on N = " + RULE_LEVELS[2] + ", 3-D: u = sin(2πx)sin(πy)(1−z)² on N = " + RULE_LEVELS[3] +
-             ". 'gap' is |L2(rule) − L2(exact)| / L2(exact) on the same level; 'max [u_h]_+' the penetration, a vertex value.", "",
+             ". 'gap' is |L2(rule) − L2(exact)| / L2(exact) on the same level; 'max [u_h]_+' the penetration, "
+             "a vertex value.", "",
              summary, "",
              f"Levels of the exact rule that did not converge: {exact_failed}. {independent_check(found)}", "",
              "Why they part: on facets where u_h keeps one sign, [u_h]_+^α v is 0 or u_h^α v, for integer α a "
@@ -554,8 +555,8 @@ def header(out):
                       "How a level is solved and when it counts as converged: README.md, *Robust solves*. In short: "
                       "`strategy: auto` starts each level from the previous level's solution (nested iteration) and "
                       "falls back to ε-continuation when Newton fails; a solve succeeds when ‖F‖ ≤ rtol · "
-                      "‖load without penalty‖, or when the full Newton correction is ≤ stol · ‖u_h‖ (directly, or "
-                      "predicted by the quadratic model and confirmed by a simplified Newton correction); then up to "
+                      "‖load without penalty‖, or when the full Newton correction is ≤ stol · ‖u_h‖ (directly, "
+                      "or predicted by the quadratic model and confirmed by a simplified Newton correction); then up to "
                       "`solver.polish` more Newton steps bring the predicted error below 1e-13 ‖u_h‖ (or to the "
                       "round-off floor), so that the algebraic error of every reported error stays below 1e-6 of it "
                       "(`make precision`)."])
