@@ -231,21 +231,17 @@ class NewtonSolver:
             self.assemble_fixed()
         self._test = dataclasses.replace(self.test, scale=self.load_scale()) if self.test else None
         self._direction, self._previous, self._confirmed, self._extra_linear_its = None, None, None, 0
-        self._accepted, self._kept = None, None  # (reason, its, estimate) of the success test, its iterate
+        self._accepted, self._kept = None, None  # see _keep
         self._before, self._full = self.x.duplicate(), (False, False)  # iterate before the step; full steps
         if self.snes.getType() == "newtontr" and not self._user_radius:
             self._set_trust_radius()
         self.snes.solve(None, self.x)
-        reason = self.snes.getConvergedReason()
-        if self._accepted is not None and reason < 0:  # a step after success failed: back to its last iterate
-            self._kept.copy(self.x)
-            reason, self._confirmed = self._accepted[0], self._accepted[2]
+        reason, residuals = self._ended()
         self.x.copy(self.u.vector)
         self.u.x.scatter_forward()
         for vec in (self._before, self._kept):
             if vec is not None:
                 vec.destroy()
-        residuals, _ = self.snes.getConvergenceHistory()
         if reason in STALLED and self._at_root():
             reason = CONVERGED_STEP  # no decrease is possible at round-off, and none is needed
         if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
@@ -259,6 +255,17 @@ class NewtonSolver:
                        linear_its=self.snes.getLinearSolveIterations() + self._extra_linear_its,
                        residuals=tuple(float(r) for r in residuals),
                        correction=estimate / unorm if estimate is not None and unorm > 0 else None)
+
+    def _ended(self):
+        """SNES's reason and residual history; when a step after success failed, the success's reason and
+        the history up to the last iterate that passed, which goes back into x."""
+        reason = self.snes.getConvergedReason()
+        residuals, _ = self.snes.getConvergenceHistory()
+        if self._accepted is not None and reason < 0:
+            reason, _, self._confirmed, its = self._accepted
+            self._kept.copy(self.x)
+            residuals = residuals[:its + 1]
+        return reason, residuals
 
     def _at_root(self):
         """Whether the full Newton direction at the stalled iterate passes test (S): ||F|| then
@@ -425,7 +432,7 @@ class NewtonSolver:
             if step is None or not all(math.isfinite(v) for v in (fnorm, unorm, step)):
                 return DIVERGED_NAN  # solve() goes back to the accepted iterate
             if test.stol == 0 or test.step_small(step, unorm):
-                self._keep(self._accepted[0], self._accepted[1], step)
+                self._keep(self._accepted[0], self._accepted[1], step, its)
                 done = its - self._accepted[1] >= test.polish or its >= test.max_it
                 return self._accepted[0] if done or test.polished(step, previous, unorm) else None
             self._accepted = None
@@ -433,15 +440,15 @@ class NewtonSolver:
         if reason is None or reason < 0 or its >= test.max_it or test.polish == 0 or \
                 test.polished(step, previous, unorm):
             return reason
-        self._keep(reason, its, self._confirmed if self._confirmed is not None else self._direction)
+        self._keep(reason, its, self._confirmed if self._confirmed is not None else self._direction, its)
         return None
 
-    def _keep(self, reason, its, estimate):
-        """Remember the success (reason, iteration) and the latest iterate that passed, with its error
-        estimate: solve() returns to it if a later step fails (a line search at round-off, say)."""
+    def _keep(self, reason, success_its, estimate, its):
+        """Remember the success (reason, iteration) and the latest iterate that passed (iteration `its`), with
+        its error estimate: solve() returns to it if a later step fails (a line search at round-off)."""
         self._kept = self._kept or self.x.duplicate()
         self.snes.getSolution().copy(self._kept)
-        self._accepted = (reason, its, estimate)
+        self._accepted = (reason, success_its, estimate, its)
 
     def _simplified_correction(self):
         """||J(u_{k-1})^{-1} F(u_k)||: one more solve with the factors/preconditioner of the last step."""
