@@ -187,6 +187,7 @@ class Solver:
     continuation: Continuation = key(Continuation(), "eps-continuation (strategy continuation or auto)")
     condition_max_dofs: int = key(0, "> 0: estimate cond(J) on levels with at most this many dofs")
     linear_floor: bool = key(False, "also time one linear solve per level (make bench)")
+    polish: int = key(3, "Newton steps after success, at most, to an error <= 1e-13 ||u_h|| (issue 17)")
 
 
 @dataclass(frozen=True)
@@ -669,7 +670,8 @@ def _solver(raw, path):
                   linear_rtol=s.number("linear_rtol", positive=True), linear_fallback=s.boolean("linear_fallback"),
                   inexact=s.boolean("inexact"), continuation=_continuation(s.section("continuation"),
                                                                            s.at("continuation")),
-                  condition_max_dofs=s.integer("condition_max_dofs", low=0), linear_floor=s.boolean("linear_floor"))
+                  condition_max_dofs=s.integer("condition_max_dofs", low=0), linear_floor=s.boolean("linear_floor"),
+                  polish=s.integer("polish", low=0))
 
 
 def _petsc_options(raw, path):

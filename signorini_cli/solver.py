@@ -29,8 +29,16 @@ DIVERGED_MAX_IT = PETSc.SNES.ConvergedReason.DIVERGED_MAX_IT
 STALLED = {PETSc.SNES.ConvergedReason.DIVERGED_LINE_SEARCH, PETSc.SNES.ConvergedReason.DIVERGED_TR_DELTA,
            PETSc.SNES.ConvergedReason.DIVERGED_INNER}
 FULL_STEP_TOL = 1e-8  # a step with lambda >= 1 - 1e-8 is the full Newton step (round-off in the norms)
+# ... or one that falls short of it by at most 1e-12 ||u||: x - x_before of a step near round-off
+# (1e-14 ||u|| after success) carries a relative error far above FULL_STEP_TOL
+FULL_STEP_ROUNDOFF = 1e-12
 TR_RADIUS = 0.2  # newtontr's first radius, relative to max(||u_0||, sqrt(dofs)) (PETSc: 0.2 ||u_0||)
 LINEAR_SOLVE_FAILED = "DIVERGED_LINEAR_SOLVE"
+# polish (issue 17, item 5): after the success test, Newton goes on until the predicted error of the iterate is
+# below POLISH_TOL ||u||. Reported errors are >= 1e-7 ||u_h|| (the smallest: the eps-sweep's model error and
+# data-push's L2_ref), so 1e-13 keeps the algebraic error of each below 1e-6 of it.
+POLISH_TOL = 1e-13
+POLISH_STALL = 0.5  # a step at least half the previous one does not contract: the round-off floor is reached
 _prefixes = itertools.count()
 
 
@@ -124,6 +132,7 @@ class SuccessTest:
     stol: float
     max_it: int
     scale: float
+    polish: int = 0  # at most this many Newton steps after the test passes (NewtonSolver, polished)
 
     def __call__(self, its, fnorm, unorm, step=None, previous=None, correction=None):
         """The SNES reason for iterate `its`, or None to go on. `step`, `previous`: ||delta_k||,
@@ -150,9 +159,20 @@ class SuccessTest:
             return False
         return (step / previous) ** 2 * step <= self.stol * unorm
 
+    def polished(self, step, previous, unorm):
+        """Whether Newton steps after success can stop at this iterate (two full steps in a row): the
+        quadratic model's prediction of its error, Θ^2 ||delta_k|| as in test (C), is at most
+        POLISH_TOL ||u||, or the steps no longer contract (Θ >= POLISH_STALL: round-off, e.g. in the
+        1/eps rows, floors them)."""
+        if step is None or not previous:
+            return False
+        theta = step / previous
+        return theta >= POLISH_STALL or theta**2 * step <= POLISH_TOL * unorm
+
 
 def success_test(solver_cfg, scale=1.0):
-    return SuccessTest(solver_cfg.rtol, solver_cfg.atol, solver_cfg.stol, solver_cfg.max_it, scale)
+    return SuccessTest(solver_cfg.rtol, solver_cfg.atol, solver_cfg.stol, solver_cfg.max_it, scale,
+                       solver_cfg.polish)
 
 
 class NewtonSolver:
@@ -213,15 +233,17 @@ class NewtonSolver:
             self.assemble_fixed()
         self._test = dataclasses.replace(self.test, scale=self.load_scale()) if self.test else None
         self._direction, self._previous, self._confirmed, self._extra_linear_its = None, None, None, 0
+        self._accepted, self._kept = None, None  # see _keep
         self._before, self._full = self.x.duplicate(), (False, False)  # iterate before the step; full steps
         if self.snes.getType() == "newtontr" and not self._user_radius:
             self._set_trust_radius()
         self.snes.solve(None, self.x)
+        reason, residuals = self._ended()
         self.x.copy(self.u.vector)
         self.u.x.scatter_forward()
-        self._before.destroy()
-        residuals, _ = self.snes.getConvergenceHistory()
-        reason = self.snes.getConvergedReason()
+        for vec in (self._before, self._kept):
+            if vec is not None:
+                vec.destroy()
         if reason in STALLED and self._at_root():
             reason = CONVERGED_STEP  # no decrease is possible at round-off, and none is needed
         if reason == PETSc.SNES.ConvergedReason.DIVERGED_LINEAR_SOLVE:
@@ -235,6 +257,17 @@ class NewtonSolver:
                        linear_its=self.snes.getLinearSolveIterations() + self._extra_linear_its,
                        residuals=tuple(float(r) for r in residuals),
                        correction=estimate / unorm if estimate is not None and unorm > 0 else None)
+
+    def _ended(self):
+        """SNES's reason and residual history; when a step after success failed, the success's reason and
+        the history up to the last iterate that passed, which goes back into x."""
+        reason = self.snes.getConvergedReason()
+        residuals, _ = self.snes.getConvergenceHistory()
+        if self._accepted is not None and reason < 0:
+            reason, _, self._confirmed, its = self._accepted
+            self._kept.copy(self.x)
+            residuals = residuals[:its + 1]
+        return reason, residuals
 
     def _at_root(self):
         """Whether the full Newton direction at the stalled iterate passes test (S): ||F|| then
@@ -370,7 +403,7 @@ class NewtonSolver:
         """Whether the line search took the whole Newton step to x (lambda = 1): the quadratic model
         of test (C) describes only Newton's local phase, never damped steps."""
         self._before.aypx(-1.0, x)  # x - x_before, the step taken
-        return self._before.norm() >= (1 - FULL_STEP_TOL) * self._direction
+        return self._before.norm() >= (1 - FULL_STEP_TOL) * self._direction - FULL_STEP_ROUNDOFF * x.norm()
 
     def _converged(self, snes, its, norms):
         xnorm, _, fnorm = norms
@@ -383,11 +416,41 @@ class NewtonSolver:
         self._confirmed = None
         if self.line_search and step is not None:
             self._full = (self._full[1], self._full_step(snes.getSolution()))
-        previous = self._previous if all(self._full) else None  # (C) after two full steps only
+        # (C) and the polish after two full steps only; newtontr's steps near a root are its full Newton
+        # directions (the radius no longer cuts them), and (C) needs newtonls's simplified correction
+        previous = self._previous if all(self._full) or not self.line_search else None
         correction = self._simplified_correction if self.line_search else None
-        reason = self._test(its, fnorm, xnorm if its > 0 else self.x.norm(), step, previous, correction)
+        reason = self._decide(its, fnorm, xnorm if its > 0 else self.x.norm(), step, previous, correction)
         self._previous = step
         return reason
+
+    def _decide(self, its, fnorm, unorm, step, previous, correction):
+        """The success test, then up to `polish` more Newton steps until SuccessTest.polished: each step
+        after success is the error of the iterate before it to first order, and at quadratic
+        convergence leaves an error of its square. A step after success that test (S) would reject
+        withdraws the success (Newton goes on under the test); a failed one ends at the success's iterate."""
+        test = self._test
+        if self._accepted is not None:
+            if step is None or not all(math.isfinite(v) for v in (fnorm, unorm, step)):
+                return DIVERGED_NAN  # solve() goes back to the accepted iterate
+            if test.stol == 0 or test.step_small(step, unorm):
+                self._keep(self._accepted[0], self._accepted[1], step, its)
+                done = its - self._accepted[1] >= test.polish or its >= test.max_it
+                return self._accepted[0] if done or test.polished(step, previous, unorm) else None
+            self._accepted = None
+        reason = test(its, fnorm, unorm, step, previous, correction)
+        if reason is None or reason < 0 or its >= test.max_it or test.polish == 0 or \
+                test.polished(step, previous, unorm):
+            return reason
+        self._keep(reason, its, self._confirmed if self._confirmed is not None else self._direction, its)
+        return None
+
+    def _keep(self, reason, success_its, estimate, its):
+        """Remember the success (reason, iteration) and the latest iterate that passed (iteration `its`), with
+        its error estimate: solve() returns to it if a later step fails (a line search at round-off)."""
+        self._kept = self._kept or self.x.duplicate()
+        self.snes.getSolution().copy(self._kept)
+        self._accepted = (reason, success_its, estimate, its)
 
     def _simplified_correction(self):
         """||J(u_{k-1})^{-1} F(u_k)||: one more solve with the factors/preconditioner of the last step."""
