@@ -64,14 +64,9 @@ def _shown_path(path):
 def emit(lines):
     """Print the lines to stdout; a reader that stops early (`| head -1`) ends the output quietly: the
     work is done, the rest of stdout goes to /dev/null (no BrokenPipeError at exit)."""
-    try:
+    with guard.stdout_may_close():
         for line in lines:
             print(line)
-        sys.stdout.flush()
-    except BrokenPipeError:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        os.close(devnull)
 
 
 def shipped_configs():
