@@ -17,7 +17,7 @@ CONFIGS := $(shell find configs -name '*.yaml' | sort)
 PAPER_CONFIGS := $(sort $(wildcard configs/paper/*.yaml))
 PAPER_RESULTS := results/paper
 
-.PHONY: setup demo test test-serial test-mpi run studies verify meshes geometries clean
+.PHONY: setup demo test test-serial test-mpi test-fast run studies verify meshes geometries clean
 
 setup: $(STAMP)
 
@@ -37,6 +37,13 @@ test-serial: setup
 
 test-mpi: setup
 	$(MPIRUN) $(PY) -m pytest --with-mpi -m mpi -q -p no:cacheprovider
+
+# the inner loop (< 30 s): config, expressions, rates, verdict, progress, the bad-input corpus, meshes, the
+# contact integrals and the weak form; `make test` stays the full suite that CI runs
+FAST_TESTS := tests/test_config.py tests/test_expressions.py tests/test_rates.py tests/test_verdict.py \
+              tests/test_progress.py tests/test_bad_input.py tests/test_meshes.py
+test-fast: setup
+	$(PY) -m pytest -m "not mpi" -q -p no:cacheprovider $(FAST_TESTS)
 
 run: setup
 	$(SIGNORINI) run $(CONFIG) --force
