@@ -4,7 +4,10 @@ beside the UFL forms into the PETSc residual and Jacobian (issue 17)."""
 import math
 
 import numpy as np
+from petsc4py import PETSc
 from scipy import special
+
+from . import measure
 
 SERIES_SPREAD = 0.25  # series about the mean value c when every |u_j - c| <= c/4: terms shrink like 4^-j
 SERIES_TERMS = 32  # C(j+4, 4) 4^-j < 1e-14 from j = 32 on (at most 5 points in a divided difference)
@@ -122,3 +125,204 @@ def _cone(u, opposite, zeta, beta):
     m1 = radial(1, 0) * zeta * f0[:, None] + radial(0, 1) * f1
     m2 = radial(2, 0) * zz * f0[:, None, None] + radial(1, 1) * (zf + zf.transpose(0, 2, 1)) + radial(0, 2) * f2
     return m0, m1, m2
+
+
+# --- the kinked data term (1/eps)∫_Γc [u_ex]_+^alpha v: adaptive rules around the zeros of u_ex ------
+
+SIGN_SAMPLES = 8  # sub-intervals per segment (and lattice divisions per triangle) searched for sign changes
+GAUSS_POINTS = 12  # Gauss-Legendre / Gauss-Jacobi points per smooth piece
+BISECTIONS = 60  # halvings of a sign-changing sub-interval: its zero to round-off (2^-60 of h/8)
+
+
+def data_segments(u_fn, alpha, starts, ends, weights_fn, samples=SIGN_SAMPLES):
+    """∫_0^1 [u(x(t))]_+^alpha w(x(t)) dt on segments x(t) = start + t (end - start), shapes (M, 3),
+    for the vector weights w = weights_fn(t) (M, q, points, k): each of `samples` sub-intervals
+    is integrated by Gauss-Legendre where u keeps its sign and, where it changes sign, cut at its zero
+    (bisection) and integrated by Gauss-Jacobi with the weight |t - zero|^alpha, so that the kink
+    [.]_+^alpha costs no accuracy."""
+    edges = np.linspace(0.0, 1.0, samples + 1)
+    u_edges = _on_segments(u_fn, starts, ends, np.broadcast_to(edges, (len(starts), edges.size)))
+    a, b = edges[:-1], edges[1:]
+    ua, ub = u_edges[:, :-1], u_edges[:, 1:]
+    total = 0.0
+    smooth = (ua > 0) & (ub > 0)
+    total = total + _pieces(u_fn, alpha, starts, ends, weights_fn, np.where(smooth, a, 0.0),
+                            np.where(smooth, b, 0.0), None)
+    change = (ua > 0) != (ub > 0)
+    if change.any():
+        zero = _bisect(u_fn, starts, ends, np.where(change, a, 0.0), np.where(change, b, 0.0), ua > 0)
+        far = np.where(ua > 0, a, b)  # the positive end
+        total = total + _pieces(u_fn, alpha, starts, ends, weights_fn, np.where(change, zero, 0.0),
+                                np.where(change, far, 0.0), alpha)
+    return total
+
+
+def _on_segments(u_fn, starts, ends, t):
+    """u at parameters t (M, q) of the segments."""
+    points = starts[:, None, :] + t[..., None] * (ends - starts)[:, None, :]
+    return np.broadcast_to(u_fn(points), t.shape)
+
+
+def _bisect(u_fn, starts, ends, lo, hi, lo_positive):
+    """The zero of u in each sub-interval [lo, hi] (M, q) where it changes sign."""
+    for _ in range(BISECTIONS):
+        mid = (lo + hi) / 2
+        same = (_on_segments(u_fn, starts, ends, mid) > 0) == lo_positive
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    return (lo + hi) / 2
+
+
+def _pieces(u_fn, alpha, starts, ends, weights_fn, origin, end, jacobi):
+    """sum over pieces [origin, end] (M, q) of ∫ [u]_+^alpha w dt: Gauss-Legendre (jacobi None) or
+    Gauss-Jacobi with the weight |t - origin|^alpha, u vanishing at the origin."""
+    if jacobi is None:
+        x, w = special.roots_legendre(GAUSS_POINTS)
+        s, w = (x + 1) / 2, w / 2
+    else:
+        x, w = special.roots_jacobi(GAUSS_POINTS, 0.0, jacobi)
+        s, w = (x + 1) / 2, w / 2 ** (jacobi + 1)  # ∫_0^1 s^alpha f(s) ds
+    length = end - origin  # signed: the piece may run backwards from its zero
+    t = origin[..., None] + length[..., None] * s  # (M, q, points)
+    points = starts[:, None, None, :] + t[..., None] * (ends - starts)[:, None, None, :]
+    u = np.broadcast_to(u_fn(points), t.shape)
+    values = psi(u, alpha) if jacobi is None else psi(u / s, alpha)  # (u/s)^alpha s^alpha = u^alpha
+    integrand = values[..., None] * weights_fn(t)  # (M, q, points, k)
+    return np.einsum("mqpk,p,mq->mk", integrand, w, np.abs(length))
+
+
+def data_on_segments(u_fn, alpha, points):
+    """∫_S [u]_+^alpha lambda_i on segments given as (facets, 2, 3) vertex points: (facets, 2)."""
+    def weights(t):
+        return np.stack((1 - t, t), axis=-1)
+    lengths = np.linalg.norm(points[:, 1] - points[:, 0], axis=1)
+    return lengths[:, None] * data_segments(u_fn, alpha, points[:, 0], points[:, 1], weights)
+
+
+def data_on_triangles(u_fn, alpha, points):
+    """∫_T [u]_+^alpha lambda_i on triangles (facets, 3, 3): collapsed coordinates x = P0 + a e1 + b e2,
+    b = t (1 - a); lines of fixed a by data_segments, and in a Gauss-Legendre on the pieces between the
+    zeros of u on the edges b = 0 and a + b = 1 (where the inner integral stops being smooth in a).
+    Triangles whose sample lattice shows no sign change take one piece each way."""
+    p0, e1, e2 = points[:, 0], points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]
+    lattice = np.array([(i, j) for i in range(SIGN_SAMPLES + 1) for j in range(SIGN_SAMPLES + 1 - i)]) / SIGN_SAMPLES
+    u = u_fn(p0[:, None] + lattice[None, :, :1] * e1[:, None] + lattice[None, :, 1:] * e2[:, None])
+    u = np.broadcast_to(u, (len(points), len(lattice)))
+    kinked = (u > 0).any(axis=1) & (u <= 0).any(axis=1)
+    result = np.zeros((len(points), 3))
+    smooth = ~kinked & (u > 0).all(axis=1)
+    for mask, samples in ((smooth, 1), (kinked, SIGN_SAMPLES)):
+        if mask.any():
+            result[mask] = _triangle_lines(u_fn, alpha, p0[mask], e1[mask], e2[mask], samples)
+    areas = np.linalg.norm(np.cross(e1, e2), axis=1) / 2
+    return 2 * areas[:, None] * result
+
+
+def _triangle_lines(u_fn, alpha, p0, e1, e2, samples):
+    """∫_0^1 (1-a) ∫_0^1 [u]_+^alpha lambda dt da (collapsed coordinates) on the given triangles."""
+    outer = _outer_breakpoints(u_fn, p0, e1, e2, samples)  # (M, pieces + 1), sorted
+    x, w = special.roots_legendre(GAUSS_POINTS)
+    lo, hi = outer[:, :-1], outer[:, 1:]
+    a = (lo[..., None] + (hi - lo)[..., None] * (x + 1) / 2).reshape(len(p0), -1)  # (M, lines)
+    weight = ((hi - lo)[..., None] / 2 * w).reshape(len(p0), -1) * (1 - a)
+    starts = p0[:, None] + a[..., None] * e1[:, None]
+    ends = p0[:, None] + a[..., None] * e1[:, None] + (1 - a)[..., None] * e2[:, None]
+    a_line = a.reshape(-1)
+
+    def weights(t):  # lambda_0, lambda_1, lambda_2 = 1 - a - b, a, b with b = t (1 - a)
+        a_t = a_line[:, None, None]
+        b = t * (1 - a_t)
+        return np.stack((1 - a_t - b, np.broadcast_to(a_t, b.shape), b), axis=-1)
+
+    lines = data_segments(u_fn, alpha, starts.reshape(-1, 3), ends.reshape(-1, 3), weights, samples)
+    return np.einsum("ml,mlk->mk", weight, lines.reshape(len(p0), -1, 3))
+
+
+def _outer_breakpoints(u_fn, p0, e1, e2, samples):
+    """0, 1 and, for kinked triangles, the uniform sample points and the zeros of u along the edges
+    b = 0 (P0 -> P1) and a + b = 1 (P2 -> P1), both parametrised by a: (M, breakpoints) sorted."""
+    grid = np.linspace(0.0, 1.0, samples + 1)
+    found = [np.broadcast_to(grid, (len(p0), grid.size))]
+    if samples > 1:
+        for start, end in ((p0, p0 + e1), (p0 + e2, p0 + e1)):
+            found.append(_edge_zeros(u_fn, start, end, grid))
+    return np.sort(np.concatenate(found, axis=1), axis=1)
+
+
+def _edge_zeros(u_fn, start, end, grid):
+    """The zero of u in each grid sub-interval of the segment where u changes sign, else its left end."""
+    values = _on_segments(u_fn, start, end, np.broadcast_to(grid, (len(start), grid.size)))
+    lo, hi = np.broadcast_to(grid[:-1], values[:, :-1].shape), np.broadcast_to(grid[1:], values[:, 1:].shape)
+    change = (values[:, :-1] > 0) != (values[:, 1:] > 0)
+    zero = _bisect(u_fn, start, end, lo.copy(), hi.copy(), values[:, :-1] > 0)
+    return np.where(change, zero, lo)
+
+
+# --- assembly beside the UFL forms ----------------------------------------------------------------------
+
+RULES = ("exact", "vertex")
+
+
+class ContactTerm:
+    """(1/eps)∫_Γc [u_h]_+^alpha v (penalty) minus (1/eps)∫_Γc [u_ex]_+^alpha v (data) on the rank's owned
+    Γ_C facets (each counted once under MPI), integrated by `rule`: exact (the P1 integrals in closed
+    form, the data by adaptive rules) or vertex (lumped: (1/eps) psi(u_i) ∫ lambda_i). `penalty` False
+    leaves the penalty to UFL (the smooth positive part); `u_exact(points, eps)` evaluates u_ex in numpy
+    (None: no kinked data term). `eps` is the forms' Constant, read at every evaluation."""
+
+    def __init__(self, V, facet_tags, marker, alpha, eps, rule="exact", penalty=True, u_exact=None):
+        self.dofs, self.points = measure.contact_facet_dofs(V, facet_tags, marker)
+        self.sizes = measure.facet_sizes(self.points)
+        self.alpha, self.eps, self.rule, self.penalty, self.u_exact = alpha, eps, rule, penalty, u_exact
+        self._data, self._data_eps = None, None
+
+    def prepare(self):
+        """The data term at the current eps, computed once per eps (once per SNES solve)."""
+        eps = float(self.eps.value)
+        if self.u_exact is None or self._data_eps == eps:
+            return
+        u_fn = lambda x: self.u_exact(x, eps)  # noqa: E731
+        if self.rule == "vertex":
+            self._data = self.sizes[:, None] / self.dofs.shape[1] * psi(u_fn(self.points), self.alpha)
+        elif self.dofs.shape[1] == 2:
+            self._data = data_on_segments(u_fn, self.alpha, self.points)
+        else:
+            self._data = data_on_triangles(u_fn, self.alpha, self.points)
+        self._data_eps = eps
+
+    def residual(self, u):
+        """Per facet and vertex (facets, n+1): the term's residual at the P1 values u (local array)."""
+        values = np.zeros(self.dofs.shape)
+        if self.penalty:
+            u_f = u[self.dofs]
+            if self.rule == "vertex":
+                values += self.sizes[:, None] / u_f.shape[1] * psi(u_f, self.alpha)
+            else:
+                values += self.sizes[:, None] * moments(u_f, self.alpha)[1]
+        if self.u_exact is not None:
+            self.prepare()
+            values -= self._data
+        return values / float(self.eps.value)
+
+    def jacobian(self, u):
+        """Per facet (facets, n+1, n+1): (1/eps)∫ alpha [u_h]_+^(alpha-1) lambda_i lambda_j (vertex: diagonal)."""
+        u_f = u[self.dofs]
+        k = u_f.shape[1]
+        if self.rule == "vertex":
+            diagonal = self.sizes[:, None] / k * self.alpha * psi(u_f, self.alpha - 1)
+            values = diagonal[:, :, None] * np.eye(k)
+        else:
+            values = self.sizes[:, None, None] * self.alpha * moments(u_f, self.alpha - 1)[2]
+        return values / float(self.eps.value)
+
+    def add_residual(self, b, u):
+        """b += the residual (local arrays, ghosts included: before b's reverse ghost update)."""
+        if self.penalty or self.u_exact is not None:
+            np.add.at(b, self.dofs, self.residual(u))
+
+    def add_jacobian(self, A, u, fixed):
+        """A += the Jacobian (ADD, local indices) off the rows and columns of the local dofs `fixed`
+        (bool mask: Dirichlet dofs, whose identity rows the solver set)."""
+        if not self.penalty:
+            return
+        index = np.where(fixed[self.dofs], -1, self.dofs).astype(PETSc.IntType)  # PETSc skips index -1
+        A.setValuesLocalRCV(index, index, self.jacobian(u), addv=PETSc.InsertMode.ADD)
