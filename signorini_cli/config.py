@@ -20,6 +20,7 @@ FACES = {2: ("left", "right", "bottom", "top"),
          3: ("left", "right", "front", "back", "bottom", "top")}
 DIAGONALS = ("right", "left", "crossed")
 POSITIVE_PARTS = ("exact", "smooth")
+CONTACT_QUADRATURES = ("exact", "vertex")  # or an integer >= 1: a Gauss rule of that degree (issue 17)
 # smoothing of [u]_+: delta^2/eps is the flux error off contact, so delta ~ h sqrt(eps) keeps it O(h^2)
 # for every eps; docs/stability.md (make stiff) measures the laws this was chosen from
 DEFAULT_DELTA = "1e-2*h*sqrt(eps)"
@@ -183,6 +184,7 @@ class Config:
     contact: str
     problem: Problem
     positive_part: PositivePart = PositivePart()
+    contact_quadrature: object = "exact"  # CONTACT_QUADRATURES or an integer degree
     solver: Solver = Solver()
     output: Output = Output()
     description: str = ""
@@ -244,7 +246,7 @@ def apply_override(raw, item):
 def from_dict(raw):
     """Validate a raw mapping into a Config."""
     _keys(raw, "", required=("study", "mesh", "contact"),
-          optional=("dimension", "alpha", "epsilon", "problem", "positive_part", "solver",
+          optional=("dimension", "alpha", "epsilon", "problem", "positive_part", "contact_quadrature", "solver",
                     "output", "description", "verification", "expect",
                     "study_type", "limit"))
     study = _string(raw["study"], "study")
@@ -259,11 +261,13 @@ def from_dict(raw):
     alpha = _number(raw.get("alpha", 2.0), "alpha", low=1.0)
     if dim == 3 and alpha > MAX_ALPHA_3D:
         raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g}")
+    positive = _positive_part(raw.get("positive_part", "exact"), "positive_part")
     base = Config(study=study, dimension=dim, alpha=alpha,
                   epsilon=_epsilon(raw.get("epsilon", {}), "epsilon"),
                   mesh=mesh, contact=_contact(raw["contact"], mesh, dim),
                   problem=_problem(raw.get("problem"), "problem", dim),
-                  positive_part=_positive_part(raw.get("positive_part", "exact"), "positive_part"),
+                  positive_part=positive,
+                  contact_quadrature=_contact_quadrature(raw.get("contact_quadrature", "exact"), positive.kind),
                   solver=_solver(raw.get("solver", {}), "solver"),
                   output=_output(raw.get("output", {}), "output"),
                   verification=_verification(raw.get("verification", {}), "verification", raw.get("problem")),
@@ -429,6 +433,19 @@ def _positive_part(raw, path):
     return PositivePart(kind, delta)
 
 
+def _contact_quadrature(raw, positive_kind):
+    """exact | vertex | a Gauss degree >= 1; vertex lumps the exact positive part only (the smooth one
+    keeps its UFL quadrature)."""
+    path = "contact_quadrature"
+    if isinstance(raw, str):
+        value = _choice(raw, path, CONTACT_QUADRATURES)
+    else:
+        value = _integer(raw, path, low=1)
+    if value == "vertex" and positive_kind != "exact":
+        raise ConfigError(path, "vertex lumps the exact positive part; positive_part: smooth keeps its quadrature")
+    return value
+
+
 def _solver(raw, path):
     _keys(raw, path, optional=("rtol", "atol", "max_it", "linear", "line_search", "on_failure",
                                "petsc_options") + SOLVER_STRATEGY_KEYS)
@@ -529,7 +546,7 @@ def _expect(raw, path, problem):
 
 # --- the ε → 0 studies (docs/limit.md) -----------------------------------------------------------
 
-UNUSED = {"signorini": {"alpha": "", "epsilon": "", "positive_part": "", "limit": ""},
+UNUSED = {"signorini": {"alpha": "", "epsilon": "", "positive_part": "", "contact_quadrature": "", "limit": ""},
           "epsilon_sweep": {"alpha": " (give the α values as limit.alpha)",
                             "epsilon": " (the ε values are limit.epsilon)", "verification": "", "expect": ""},
           "total_error": {"alpha": " (give the α values as limit.alpha)",

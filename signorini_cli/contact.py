@@ -269,8 +269,9 @@ class ContactTerm:
     leaves the penalty to UFL (the smooth positive part); `u_exact(points, eps)` evaluates u_ex in numpy
     (None: no kinked data term). `eps` is the forms' Constant, read at every evaluation."""
 
-    def __init__(self, V, facet_tags, marker, alpha, eps, rule="exact", penalty=True, u_exact=None):
-        self.dofs, self.points = measure.contact_facet_dofs(V, facet_tags, marker)
+    def __init__(self, u_h, facet_tags, marker, alpha, eps, rule="exact", penalty=True, u_exact=None):
+        self.u_h = u_h  # the iterate: the solver keeps it in u_h (ghosts updated) when it assembles
+        self.dofs, self.points = measure.contact_facet_dofs(u_h.function_space, facet_tags, marker)
         self.sizes = measure.facet_sizes(self.points)
         self.alpha, self.eps, self.rule, self.penalty, self.u_exact = alpha, eps, rule, penalty, u_exact
         self._data, self._data_eps = None, None
@@ -314,15 +315,25 @@ class ContactTerm:
             values = self.sizes[:, None, None] * self.alpha * moments(u_f, self.alpha - 1)[2]
         return values / float(self.eps.value)
 
-    def add_residual(self, b, u):
-        """b += the residual (local arrays, ghosts included: before b's reverse ghost update)."""
-        if self.penalty or self.u_exact is not None:
-            np.add.at(b, self.dofs, self.residual(u))
+    def add_residual(self, b):
+        """b += the residual at u_h (local array, ghosts included: before b's reverse ghost update)."""
+        np.add.at(b, self.dofs, self.residual(self.u_h.x.array))
 
-    def add_jacobian(self, A, u, fixed):
+    def add_jacobian(self, A, fixed):
         """A += the Jacobian (ADD, local indices) off the rows and columns of the local dofs `fixed`
         (bool mask: Dirichlet dofs, whose identity rows the solver set)."""
         if not self.penalty:
             return
         index = np.where(fixed[self.dofs], -1, self.dofs).astype(PETSc.IntType)  # PETSc skips index -1
-        A.setValuesLocalRCV(index, index, self.jacobian(u), addv=PETSc.InsertMode.ADD)
+        A.assemblyBegin(PETSc.Mat.AssemblyType.FLUSH)  # after the INSERTed identity rows of Γ_D
+        A.assemblyEnd(PETSc.Mat.AssemblyType.FLUSH)
+        A.setValuesLocalRCV(index, index, self.jacobian(self.u_h.x.array), addv=PETSc.InsertMode.ADD)
+
+
+def dirichlet_mask(V, bcs):
+    """Bool mask over V's local dofs (ghosts included): True on the Dirichlet dofs of `bcs`."""
+    index_map = V.dofmap.index_map
+    mask = np.zeros((index_map.size_local + index_map.num_ghosts) * V.dofmap.index_map_bs, dtype=bool)
+    for bc in bcs:
+        mask[bc.dof_indices()[0]] = True
+    return mask

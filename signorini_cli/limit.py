@@ -98,7 +98,7 @@ def sweep_alpha(cfg, domain, u_S, alpha):
     dofs = solver.global_dofs(V)
     newton = solver.NewtonSolver(forms_.F, forms_.J, u_h, [bc],
                                  solver.petsc_options(cfg.solver, cfg.dimension, dofs=dofs),
-                                 test=solver.success_test(cfg.solver))
+                                 test=solver.success_test(cfg.solver), contact=forms_.contact)
     try:
         for value in cfg.limit.epsilon:
             start = time.perf_counter()

@@ -81,7 +81,7 @@ def solve(cfg, domain, u, eps_value):
     bcs = [fem.dirichletbc(fem.Function(V), dofs)]
     options = solver.petsc_options(cfg.solver, cfg.dimension, dofs=solver.global_dofs(V))
     newton = solver.NewtonSolver(forms.F, forms.J, u, bcs, options,
-                                 test=solver.success_test(cfg.solver))
+                                 test=solver.success_test(cfg.solver), contact=forms.contact)
     outcome = newton.solve()
     newton.destroy()
     return outcome

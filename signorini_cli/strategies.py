@@ -28,6 +28,7 @@ class Problem:
     eps_target: float
     dim: int
     split: object = None  # model.Split: Newton assembles the load and stiffness once per solve
+    contact: object = None  # contact.ContactTerm: the Γ_C terms assembled beside the UFL forms
 
 
 def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
@@ -141,7 +142,8 @@ class Newton:
         self.linear = solver.linear_kind(solver_cfg, problem.dim, dofs)
         self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs,
                                         solver.petsc_options(solver_cfg, problem.dim, dofs=dofs), monitor=monitor,
-                                        test=solver.success_test(solver_cfg), phases=phases, split=problem.split)
+                                        test=solver.success_test(solver_cfg), phases=phases, split=problem.split,
+                                        contact=problem.contact)
         self.fell_back = False
 
     def initial_guess(self, previous):

@@ -85,7 +85,8 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     u_h = fem.Function(V, name="u_h")
     forms = model.forms(cfg, domain, u_h, eps)
     bcs = [dirichlet_condition(V, domain, forms.u_exact)]
-    problem = strategies.Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, cfg.dimension, forms.split)
+    problem = strategies.Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, cfg.dimension, forms.split,
+                                 forms.contact)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
     dofs = solver.global_dofs(V)
     extra = dict(domain.columns, **stability.report(cfg, problem, domain, outcome, dofs))
