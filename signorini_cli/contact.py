@@ -321,13 +321,14 @@ class ContactTerm:
 
     def add_jacobian(self, A, fixed):
         """A += the Jacobian (ADD, local indices) off the rows and columns of the local dofs `fixed`
-        (bool mask: Dirichlet dofs, whose identity rows the solver set)."""
+        (bool mask: Dirichlet dofs, whose identity rows the solver set). Collective."""
         if not self.penalty:
             return
-        index = np.where(fixed[self.dofs], -1, self.dofs).astype(PETSc.IntType)  # PETSc skips index -1
         A.assemblyBegin(PETSc.Mat.AssemblyType.FLUSH)  # after the INSERTed identity rows of Γ_D
         A.assemblyEnd(PETSc.Mat.AssemblyType.FLUSH)
-        A.setValuesLocalRCV(index, index, self.jacobian(self.u_h.x.array), addv=PETSc.InsertMode.ADD)
+        if len(self.dofs):  # (petsc4py divides by the number of blocks)
+            index = np.where(fixed[self.dofs], -1, self.dofs).astype(PETSc.IntType)  # PETSc skips index -1
+            A.setValuesLocalRCV(index, index, self.jacobian(self.u_h.x.array), addv=PETSc.InsertMode.ADD)
 
 
 def dirichlet_mask(V, bcs):
