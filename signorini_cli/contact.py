@@ -129,52 +129,60 @@ def _cone(u, opposite, zeta, beta):
 
 # --- the kinked data term (1/eps)∫_Γc [u_ex]_+^alpha v: adaptive rules around the zeros of u_ex ------
 
-SIGN_SAMPLES = 8  # sub-intervals per segment (and lattice divisions per triangle) searched for sign changes
-GAUSS_POINTS = 12  # Gauss-Legendre / Gauss-Jacobi points per smooth piece
-BISECTIONS = 60  # halvings of a sign-changing sub-interval: its zero to round-off (2^-60 of h/8)
+SIGN_SAMPLES = 4  # sub-intervals per line (lattice divisions per triangle) searched for sign changes of u_ex
+GAUSS_POINTS = 10  # Gauss-Legendre / Gauss-Jacobi points per piece (make the test: 1e-12 on facets of h <= 0.1)
+ZERO_ITERATIONS = 40  # Illinois steps locating a zero of u_ex in a sub-interval where it changes sign
 
 
 def data_segments(u_fn, alpha, starts, ends, weights_fn, samples=SIGN_SAMPLES):
-    """∫_0^1 [u(x(t))]_+^alpha w(x(t)) dt on segments x(t) = start + t (end - start), shapes (M, 3),
-    for the vector weights w = weights_fn(t) (M, q, points, k): each of `samples` sub-intervals
-    is integrated by Gauss-Legendre where u keeps its sign and, where it changes sign, cut at its zero
-    (bisection) and integrated by Gauss-Jacobi with the weight |t - zero|^alpha, so that the kink
-    [.]_+^alpha costs no accuracy."""
-    edges = np.linspace(0.0, 1.0, samples + 1)
-    u_edges = _on_segments(u_fn, starts, ends, np.broadcast_to(edges, (len(starts), edges.size)))
-    a, b = edges[:-1], edges[1:]
-    ua, ub = u_edges[:, :-1], u_edges[:, 1:]
-    total = 0.0
-    smooth = (ua > 0) & (ub > 0)
-    total = total + _pieces(u_fn, alpha, starts, ends, weights_fn, np.where(smooth, a, 0.0),
-                            np.where(smooth, b, 0.0), None)
-    change = (ua > 0) != (ub > 0)
+    """∫_0^1 [u(x(t))]_+^alpha w dt on the segments x(t) = start + t (end - start), shapes (M, 3), with
+    the vector weights w = weights_fn(rows, t) (P, points, k) of the segments `rows`: (M, k). Each of
+    `samples` sub-intervals is integrated by Gauss-Legendre where u > 0 at both ends and, where u
+    changes sign, cut at its zero and integrated by Gauss-Jacobi with the weight |t - zero|^alpha, so
+    that the kink of [.]_+^alpha costs no accuracy."""
+    grid = np.linspace(0.0, 1.0, samples + 1)
+    u = _on_segments(u_fn, starts, ends, np.broadcast_to(grid, (len(starts), grid.size)))
+    rows = np.broadcast_to(np.arange(len(starts))[:, None], (len(starts), samples))
+    lo, hi = np.broadcast_to(grid[:-1], rows.shape), np.broadcast_to(grid[1:], rows.shape)
+    plus_lo, plus_hi = u[:, :-1] > 0, u[:, 1:] > 0
+    smooth, change = plus_lo & plus_hi, plus_lo != plus_hi
+    total = np.zeros((len(starts), 0))
+    pieces = [(rows[smooth], lo[smooth], hi[smooth], None)]
     if change.any():
-        zero = _bisect(u_fn, starts, ends, np.where(change, a, 0.0), np.where(change, b, 0.0), ua > 0)
-        far = np.where(ua > 0, a, b)  # the positive end
-        total = total + _pieces(u_fn, alpha, starts, ends, weights_fn, np.where(change, zero, 0.0),
-                                np.where(change, far, 0.0), alpha)
+        r = rows[change]
+        zero = _zero(u_fn, starts[r], ends[r], lo[change], hi[change], u[:, :-1][change], u[:, 1:][change])
+        pieces.append((r, zero, np.where(plus_lo[change], lo[change], hi[change]), alpha))  # to the positive end
+    for r, origin, end, jacobi in pieces:
+        values = _pieces(u_fn, alpha, starts[r], ends[r], lambda t: weights_fn(r, t), origin, end, jacobi)
+        if not total.size:
+            total = np.zeros((len(starts), values.shape[1]))
+        np.add.at(total, r, values)
     return total
 
 
 def _on_segments(u_fn, starts, ends, t):
-    """u at parameters t (M, q) of the segments."""
+    """u at the parameters t (M, q) of the segments."""
     points = starts[:, None, :] + t[..., None] * (ends - starts)[:, None, :]
     return np.broadcast_to(u_fn(points), t.shape)
 
 
-def _bisect(u_fn, starts, ends, lo, hi, lo_positive):
-    """The zero of u in each sub-interval [lo, hi] (M, q) where it changes sign."""
-    for _ in range(BISECTIONS):
-        mid = (lo + hi) / 2
-        same = (_on_segments(u_fn, starts, ends, mid) > 0) == lo_positive
-        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
-    return (lo + hi) / 2
+def _zero(u_fn, starts, ends, lo, hi, u_lo, u_hi):
+    """The zero of u in [lo, hi] of each segment, where u_lo > 0 >= u_hi or the reverse: regula falsi
+    with the Illinois modification (superlinear; the bracket always holds the zero)."""
+    for _ in range(ZERO_ITERATIONS):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.where(u_hi != u_lo, (lo * u_hi - hi * u_lo) / (u_hi - u_lo), (lo + hi) / 2)
+        t = np.clip(t, np.minimum(lo, hi), np.maximum(lo, hi))
+        u_t = np.broadcast_to(u_fn(starts + t[:, None] * (ends - starts)), t.shape)
+        low_side = (u_t > 0) == (u_lo > 0)
+        lo, u_lo, u_hi = np.where(low_side, t, lo), np.where(low_side, u_t, u_lo), np.where(low_side, u_hi / 2, u_hi)
+        hi, u_hi, u_lo = np.where(low_side, hi, t), np.where(low_side, u_hi, u_t), np.where(low_side, u_lo, u_lo / 2)
+    return np.where(np.abs(u_lo) <= np.abs(u_hi), lo, hi)
 
 
 def _pieces(u_fn, alpha, starts, ends, weights_fn, origin, end, jacobi):
-    """sum over pieces [origin, end] (M, q) of ∫ [u]_+^alpha w dt: Gauss-Legendre (jacobi None) or
-    Gauss-Jacobi with the weight |t - origin|^alpha, u vanishing at the origin."""
+    """∫ [u]_+^alpha w dt over the pieces [origin, end] (P,) of the segments (P, 3): Gauss-Legendre
+    (jacobi None) or Gauss-Jacobi with the weight |t - origin|^alpha, u vanishing at the origin."""
     if jacobi is None:
         x, w = special.roots_legendre(GAUSS_POINTS)
         s, w = (x + 1) / 2, w / 2
@@ -182,17 +190,15 @@ def _pieces(u_fn, alpha, starts, ends, weights_fn, origin, end, jacobi):
         x, w = special.roots_jacobi(GAUSS_POINTS, 0.0, jacobi)
         s, w = (x + 1) / 2, w / 2 ** (jacobi + 1)  # ∫_0^1 s^alpha f(s) ds
     length = end - origin  # signed: the piece may run backwards from its zero
-    t = origin[..., None] + length[..., None] * s  # (M, q, points)
-    points = starts[:, None, None, :] + t[..., None] * (ends - starts)[:, None, None, :]
-    u = np.broadcast_to(u_fn(points), t.shape)
+    t = origin[:, None] + length[:, None] * s  # (P, points)
+    u = _on_segments(u_fn, starts, ends, t)
     values = psi(u, alpha) if jacobi is None else psi(u / s, alpha)  # (u/s)^alpha s^alpha = u^alpha
-    integrand = values[..., None] * weights_fn(t)  # (M, q, points, k)
-    return np.einsum("mqpk,p,mq->mk", integrand, w, np.abs(length))
+    return np.einsum("pq,pqk,q,p->pk", values, weights_fn(t), w, np.abs(length))
 
 
 def data_on_segments(u_fn, alpha, points):
     """∫_S [u]_+^alpha lambda_i on segments given as (facets, 2, 3) vertex points: (facets, 2)."""
-    def weights(t):
+    def weights(rows, t):
         return np.stack((1 - t, t), axis=-1)
     lengths = np.linalg.norm(points[:, 1] - points[:, 0], axis=1)
     return lengths[:, None] * data_segments(u_fn, alpha, points[:, 0], points[:, 1], weights)
@@ -202,14 +208,14 @@ def data_on_triangles(u_fn, alpha, points):
     """∫_T [u]_+^alpha lambda_i on triangles (facets, 3, 3): collapsed coordinates x = P0 + a e1 + b e2,
     b = t (1 - a); lines of fixed a by data_segments, and in a Gauss-Legendre on the pieces between the
     zeros of u on the edges b = 0 and a + b = 1 (where the inner integral stops being smooth in a).
-    Triangles whose sample lattice shows no sign change take one piece each way."""
+    Triangles with u > 0 on their whole sample lattice take one piece each way, with u <= 0 none."""
     p0, e1, e2 = points[:, 0], points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]
     lattice = np.array([(i, j) for i in range(SIGN_SAMPLES + 1) for j in range(SIGN_SAMPLES + 1 - i)]) / SIGN_SAMPLES
     u = u_fn(p0[:, None] + lattice[None, :, :1] * e1[:, None] + lattice[None, :, 1:] * e2[:, None])
     u = np.broadcast_to(u, (len(points), len(lattice)))
-    kinked = (u > 0).any(axis=1) & (u <= 0).any(axis=1)
+    smooth = (u > 0).all(axis=1)
+    kinked = (u > 0).any(axis=1) & ~smooth
     result = np.zeros((len(points), 3))
-    smooth = ~kinked & (u > 0).all(axis=1)
     for mask, samples in ((smooth, 1), (kinked, SIGN_SAMPLES)):
         if mask.any():
             result[mask] = _triangle_lines(u_fn, alpha, p0[mask], e1[mask], e2[mask], samples)
@@ -219,42 +225,46 @@ def data_on_triangles(u_fn, alpha, points):
 
 def _triangle_lines(u_fn, alpha, p0, e1, e2, samples):
     """∫_0^1 (1-a) ∫_0^1 [u]_+^alpha lambda dt da (collapsed coordinates) on the given triangles."""
-    outer = _outer_breakpoints(u_fn, p0, e1, e2, samples)  # (M, pieces + 1), sorted
+    breaks = _outer_breakpoints(u_fn, p0, e1, e2, samples)  # (M, B) sorted
+    lo, hi = breaks[:, :-1], breaks[:, 1:]
+    tri = np.broadcast_to(np.arange(len(p0))[:, None], lo.shape)[hi > lo]  # the pieces of positive length
+    lo, hi = lo[hi > lo], hi[hi > lo]
     x, w = special.roots_legendre(GAUSS_POINTS)
-    lo, hi = outer[:, :-1], outer[:, 1:]
-    a = (lo[..., None] + (hi - lo)[..., None] * (x + 1) / 2).reshape(len(p0), -1)  # (M, lines)
-    weight = ((hi - lo)[..., None] / 2 * w).reshape(len(p0), -1) * (1 - a)
-    starts = p0[:, None] + a[..., None] * e1[:, None]
-    ends = p0[:, None] + a[..., None] * e1[:, None] + (1 - a)[..., None] * e2[:, None]
-    a_line = a.reshape(-1)
+    s = (x + 1) / 2
+    # where the zero of u leaves through an edge the inner integral behaves like |a - a*|^(alpha+1):
+    # a = lo + (hi - lo) s^2 (3 - 2s) flattens both ends of each piece
+    a = (lo[:, None] + (hi - lo)[:, None] * s**2 * (3 - 2 * s)).reshape(-1)  # one line per outer point
+    weight = ((hi - lo)[:, None] * w / 2 * 6 * s * (1 - s)).reshape(-1) * (1 - a)
+    line_tri = np.repeat(tri, GAUSS_POINTS)
+    starts = p0[line_tri] + a[:, None] * e1[line_tri]
+    ends = starts + (1 - a)[:, None] * e2[line_tri]
 
-    def weights(t):  # lambda_0, lambda_1, lambda_2 = 1 - a - b, a, b with b = t (1 - a)
-        a_t = a_line[:, None, None]
+    def weights(rows, t):  # lambda_0, lambda_1, lambda_2 = 1 - a - b, a, b with b = t (1 - a)
+        a_t = np.broadcast_to(a[rows][:, None], t.shape)
         b = t * (1 - a_t)
-        return np.stack((1 - a_t - b, np.broadcast_to(a_t, b.shape), b), axis=-1)
+        return np.stack((1 - a_t - b, a_t, b), axis=-1)
 
-    lines = data_segments(u_fn, alpha, starts.reshape(-1, 3), ends.reshape(-1, 3), weights, samples)
-    return np.einsum("ml,mlk->mk", weight, lines.reshape(len(p0), -1, 3))
+    lines = data_segments(u_fn, alpha, starts, ends, weights, samples)
+    result = np.zeros((len(p0), 3))
+    np.add.at(result, line_tri, weight[:, None] * lines)
+    return result
 
 
 def _outer_breakpoints(u_fn, p0, e1, e2, samples):
-    """0, 1 and, for kinked triangles, the uniform sample points and the zeros of u along the edges
-    b = 0 (P0 -> P1) and a + b = 1 (P2 -> P1), both parametrised by a: (M, breakpoints) sorted."""
-    grid = np.linspace(0.0, 1.0, samples + 1)
-    found = [np.broadcast_to(grid, (len(p0), grid.size))]
+    """0, 1 and, with samples > 1, the zeros of u along the edges b = 0 (P0 -> P1) and a + b = 1
+    (P2 -> P1), both parametrised by a (one per sample sub-interval where u changes sign, else 0)."""
+    found = [np.zeros((len(p0), 1)), np.ones((len(p0), 1))]
     if samples > 1:
+        grid = np.linspace(0.0, 1.0, samples + 1)
         for start, end in ((p0, p0 + e1), (p0 + e2, p0 + e1)):
-            found.append(_edge_zeros(u_fn, start, end, grid))
+            u = _on_segments(u_fn, start, end, np.broadcast_to(grid, (len(p0), grid.size)))
+            change = (u[:, :-1] > 0) != (u[:, 1:] > 0)
+            zeros = np.zeros(change.shape)
+            rows = np.broadcast_to(np.arange(len(p0))[:, None], change.shape)[change]
+            lo, hi = np.broadcast_to(grid[:-1], change.shape)[change], np.broadcast_to(grid[1:], change.shape)[change]
+            zeros[change] = _zero(u_fn, start[rows], end[rows], lo, hi, u[:, :-1][change], u[:, 1:][change])
+            found.append(zeros)
     return np.sort(np.concatenate(found, axis=1), axis=1)
-
-
-def _edge_zeros(u_fn, start, end, grid):
-    """The zero of u in each grid sub-interval of the segment where u changes sign, else its left end."""
-    values = _on_segments(u_fn, start, end, np.broadcast_to(grid, (len(start), grid.size)))
-    lo, hi = np.broadcast_to(grid[:-1], values[:, :-1].shape), np.broadcast_to(grid[1:], values[:, 1:].shape)
-    change = (values[:, :-1] > 0) != (values[:, 1:] > 0)
-    zero = _bisect(u_fn, start, end, lo.copy(), hi.copy(), values[:, :-1] > 0)
-    return np.where(change, zero, lo)
 
 
 # --- assembly beside the UFL forms ----------------------------------------------------------------------
