@@ -21,6 +21,7 @@ FACES = {2: ("left", "right", "bottom", "top"),
          3: ("left", "right", "front", "back", "bottom", "top")}
 DIAGONALS = ("right", "left", "crossed")
 POSITIVE_PARTS = ("exact", "smooth")
+CONTACT_QUADRATURES = ("exact", "vertex")  # or an integer >= 1: a Gauss rule of that degree (issue 17)
 # smoothing of [u]_+: delta^2/eps is the flux error off contact, so delta ~ h sqrt(eps) keeps it O(h^2)
 # for every eps; docs/stability.md (make stiff) measures the laws this was chosen from
 DEFAULT_DELTA = "1e-2*h*sqrt(eps)"
@@ -425,11 +426,12 @@ def from_dict(raw, folder=None):
     if dim == 3 and alpha > MAX_ALPHA_3D:
         raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g}")
     epsilon = _epsilon(top.section("epsilon"), "epsilon")
+    positive = _positive_part(top.section("positive_part"), "positive_part", epsilon)
     base = Config(study=study, dimension=dim, alpha=alpha, epsilon=epsilon,
                   mesh=mesh, contact=_contact(raw["contact"], mesh, dim),
-                  problem=_problem(raw.get("problem"), "problem", dim),
-                  positive_part=_positive_part(top.section("positive_part"), "positive_part", epsilon),
-                  contact_quadrature=_contact_quadrature(top.get("contact_quadrature"), "contact_quadrature"),
+                  problem=_problem(raw.get("problem"), "problem", dim), positive_part=positive,
+                  contact_quadrature=_contact_quadrature(top.get("contact_quadrature"), "contact_quadrature",
+                                                         positive.kind),
                   solver=_solver(top.section("solver"), "solver"),
                   output=_output(top.section("output"), "output"),
                   verification=_verification(top.section("verification"), "verification", raw.get("problem")),
@@ -586,13 +588,16 @@ def _contact(value, mesh, dim):
     return _choice(value, "contact", facet_groups)
 
 
-def _contact_quadrature(value, path):
-    """exact | vertex | a Gauss rule's degree >= 1 (SPEC)."""
+def _contact_quadrature(value, path, positive_kind):
+    """exact | vertex | a Gauss rule's degree >= 1 (SPEC); exact and vertex integrate the exact positive
+    part (the smooth one keeps its UFL quadrature)."""
     if isinstance(value, int) and not isinstance(value, bool):
         return _integer(value, path, low=1)
     if value not in CONTACT_QUADRATURES:
         raise ConfigError(path, f"{value!r} is not one of {', '.join(CONTACT_QUADRATURES)} "
                                 "or an integer >= 1")
+    if value == "vertex" and positive_kind != "exact":
+        raise ConfigError(path, "vertex lumps the exact positive part; positive_part: smooth keeps its quadrature")
     return value
 
 
@@ -772,7 +777,7 @@ def _expect(raw, path, problem):
 
 # --- the ε → 0 studies (docs/limit.md) -----------------------------------------------------------
 
-UNUSED = {"signorini": {"alpha": "", "epsilon": "", "positive_part": "", "limit": ""},
+UNUSED = {"signorini": {"alpha": "", "epsilon": "", "positive_part": "", "contact_quadrature": "", "limit": ""},
           "epsilon_sweep": {"alpha": " (give the α values as limit.alpha)",
                             "epsilon": " (the ε values are limit.epsilon)", "verification": "", "expect": ""},
           "total_error": {"alpha": " (give the α values as limit.alpha)",

@@ -1,13 +1,15 @@
 """The compliance model in UFL: weak form (SPEC; paper eq. (10)), positive part, manufactured data."""
 from dataclasses import dataclass
 
+import numpy as np
+
 import ufl
 from dolfinx import fem
 
-from . import expressions
+from . import contact, expressions
 from .meshes import CONTACT, DIRICHLET
 
-QUADRATURE_DEGREE = 6  # data terms (sin, exp ...) and the kinked [u_h]_+^alpha on Γ_C
+QUADRATURE_DEGREE = 6  # data terms (sin, exp ...); on Γ_C too with contact_quadrature: <degree> (6 before issue 17)
 
 
 @dataclass(frozen=True)
@@ -17,7 +19,7 @@ class Split:
     F_fixed: ufl.Form
     J_fixed: ufl.Form
     F_varying: ufl.Form
-    J_varying: ufl.Form
+    J_varying: ufl.Form  # None when no UFL term depends on u_h besides the stiffness
 
 
 @dataclass(frozen=True)
@@ -28,6 +30,7 @@ class Forms:
     u_exact: object  # UFL expression, or None for data-only scenes
     ds_c: ufl.Measure
     split: Split = None
+    contact: object = None  # contact.ContactTerm: the Γ_C terms integrated beside UFL (contact_quadrature exact/vertex)
 
 
 def positive_part(u, positive, h, eps):
@@ -73,24 +76,57 @@ def data(cfg, msh, eps, u_exact, n):
 
 
 def forms(cfg, domain, u_h, eps):
-    """F(u_h; v) = ∫ ∇u_h·∇v + (1/eps) ∫_Γc [u_h]_+^alpha v − ∫ f v − (1/eps) ∫_Γc g v, and J = dF/du."""
+    """F(u_h; v) = ∫ ∇u_h·∇v + (1/eps) ∫_Γc [u_h]_+^alpha v − ∫ f v − (1/eps) ∫_Γc g v, and J = dF/du.
+    With contact_quadrature exact or vertex the kinked Γ_C terms, (1/eps)∫[u_h]_+^alpha v (exact positive
+    part) and (1/eps)∫[u_ex]_+^alpha v of g, live in Forms.contact, outside the UFL forms."""
     msh = domain.mesh
     V = u_h.function_space
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
-    metadata = {"quadrature_degree": QUADRATURE_DEGREE}
-    dx = ufl.Measure("dx", domain=msh, metadata=metadata)
-    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags, metadata=metadata)(CONTACT)
+    rule = cfg.contact_quadrature
+    degree = rule if isinstance(rule, int) else QUADRATURE_DEGREE
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
+    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags,
+                       metadata={"quadrature_degree": degree})(CONTACT)
     u_exact = exact_solution(cfg, msh, eps)
     f, g = data(cfg, msh, eps, u_exact, ufl.FacetNormal(msh))
+    term = None if isinstance(rule, int) else contact_term(cfg, domain, u_h, eps, u_exact)
+    if term is not None and term.u_exact is not None:  # its kinked part [u_ex]_+^alpha is the term's
+        g = eps * ufl.dot(ufl.grad(u_exact), ufl.FacetNormal(msh))
     f, h = on_mesh(f, msh), fem.Constant(msh, domain.h)
     q = compliance(u_h, cfg.alpha, cfg.positive_part, h, eps)
+    q = q if term is None or not term.penalty else 0
     # P1 gradients are constant on (affine) cells: the stiffness is exact with UFL's own degree (0)
     stiffness = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * ufl.dx(domain=msh)
-    load, contact = f * v * dx, (q - g) / eps * v * ds_c
-    F = stiffness + contact - load
-    split = Split(F_fixed=-load, J_fixed=ufl.derivative(stiffness, u_h, du),
-                  F_varying=stiffness + contact, J_varying=ufl.derivative(contact, u_h, du))
-    return Forms(F, ufl.derivative(F, u_h, du), u_exact, ds_c, split)
+    load = f * v * dx
+    boundary = (q - g) / eps * v * ds_c if not (_is_zero(q) and _is_zero(g)) else None
+    varying = stiffness if boundary is None else stiffness + boundary
+    F = varying - load
+    J_varying = None if _is_zero(q) else ufl.derivative(boundary, u_h, du)
+    split = Split(F_fixed=-load, J_fixed=ufl.derivative(stiffness, u_h, du), F_varying=varying, J_varying=J_varying)
+    return Forms(F, ufl.derivative(F, u_h, du), u_exact, ds_c, split, term)
+
+
+def contact_term(cfg, domain, u_h, eps, u_exact):
+    """The Γ_C terms integrated beside UFL by cfg.contact_quadrature (exact or vertex): the penalty for
+    the exact positive part, and the kinked data [u_ex]_+^alpha of a manufactured compliance solution."""
+    penalty = cfg.positive_part.kind == "exact"
+    kinked = u_exact is not None and cfg.problem.exact_solves != "signorini"
+    if not (penalty or kinked):
+        return None
+    return contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, cfg.contact_quadrature,
+                               penalty, numpy_exact(cfg, domain.mesh.geometry.dim) if kinked else None)
+
+
+def numpy_exact(cfg, dim):
+    """u_ex(points, eps) in numpy, points (..., 3)."""
+    def evaluate(points, eps_value):
+        variables = dict(zip(("x", "y", "z")[:dim], np.moveaxis(points, -1, 0)[:dim]), eps=eps_value)
+        return cfg.problem.exact(variables, expressions.numpy_functions())
+    return evaluate
+
+
+def _is_zero(value):
+    return isinstance(value, (int, float)) and value == 0
 
 
 def _variables(msh, eps):

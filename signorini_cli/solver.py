@@ -16,6 +16,7 @@ from petsc4py import PETSc
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
+from . import contact as contact_
 from .timing import Phases
 
 REASONS = {getattr(PETSc.SNES.ConvergedReason, name): name
@@ -182,19 +183,24 @@ class NewtonSolver:
     the reduced one). `monitor(snes, its, fnorm)` is called at every Newton iteration; `phases`
     (timing.Phases) records form compilation and the residual and Jacobian assemblies. With `split`
     (model.Split) the load and the stiffness are assembled once per solve, and each Newton iteration
-    assembles only the rest (the contact term, and the stiffness times u with one quadrature point)."""
+    assembles only the rest (the contact term, and the stiffness times u with one quadrature point).
+    `contact` (contact.ContactTerm, Forms.contact) adds the Γ_C terms integrated beside the UFL forms to
+    every residual and Jacobian (timed as phase 'contact' within the assemblies)."""
 
-    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None, phases=None, split=None):
+    def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None, phases=None, split=None,
+                 contact=None):
         self.phases = phases or Phases()
         with self.phases("forms"):
             self.L, self.a = fem.form(F), fem.form(J)  # whole forms: sparsity, lifting, the linear floor
             varying = F if split is None else split.F_varying
             self.L_vary = self.L if split is None else fem.form(varying)
-            self.a_vary = None if split is None else fem.form(split.J_varying)
+            self.a_vary = None if split is None or split.J_varying is None else fem.form(split.J_varying)
             self.fixed = None if split is None else (fem.form(split.F_fixed), fem.form(split.J_fixed))
             self.L_load = fem.form(load_part(varying))
         self.b_fixed = None  # the split's load vector (assemble_fixed)
         self.u, self.bcs, self.test = u, bcs, test
+        self.contact = contact
+        self.fixed_dofs = contact_.dirichlet_mask(u.function_space, bcs) if contact is not None else None
         self.b = fem_petsc.create_vector(self.L)
         with self.phases("assemble_jacobian"):  # the sparsity pattern: part of the Jacobian's cost
             self.K = None if self.fixed is None else self.stiffness()
@@ -231,6 +237,9 @@ class NewtonSolver:
         fem_petsc.set_bc(self.x, self.bcs)  # start from an iterate that satisfies u = u_D on Γ_D
         if self.fixed is not None:
             self.assemble_fixed()
+        if self.contact is not None:
+            with self.phases("contact"):
+                self.contact.prepare()  # the data term at this solve's eps
         self._test = dataclasses.replace(self.test, scale=self.load_scale()) if self.test else None
         self._direction, self._previous, self._confirmed, self._extra_linear_its = None, None, None, 0
         self._accepted, self._kept = None, None  # see _keep
@@ -291,7 +300,8 @@ class NewtonSolver:
         x_D.set(0.0)
         fem_petsc.set_bc(x_D, self.bcs)
         saved = self.u.vector.copy()
-        scale = self._assembled_norm(self.L_load, x_D) or self._assembled_norm(self.L_vary, x_D) or 1.0
+        scale = (self._assembled_norm(self.L_load, x_D) or self._assembled_norm(self.L_vary, x_D, with_contact=True)
+                 or 1.0)
         saved.copy(self.u.vector)
         self.u.x.scatter_forward()
         for vec in (x_D, saved):
@@ -326,11 +336,13 @@ class NewtonSolver:
             with b.localForm() as b_local, self.b_fixed.localForm() as fixed_local:
                 b_local.array_w[:] += fixed_local.array_r
 
-    def _assembled_norm(self, L, x):
+    def _assembled_norm(self, L, x, with_contact=False):
         x.copy(self.u.vector)
         self.u.x.scatter_forward()
         b = fem_petsc.assemble_vector(L)
         self._add_fixed(b)
+        if with_contact:
+            self._add_contact(b)
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(b, self.bcs, x, -1.0)
         norm = b.norm()
@@ -352,6 +364,7 @@ class NewtonSolver:
         fem_petsc.assemble_vector(F, self.L if whole else self.L_vary)
         if not whole:
             self._add_fixed(F)
+        self._add_contact(F)
         fem_petsc.apply_lifting(F, [self.a], bcs=[self.bcs], x0=[x], scale=-1.0)
         F.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         fem_petsc.set_bc(F, self.bcs, x, -1.0)
@@ -368,8 +381,18 @@ class NewtonSolver:
             fem_petsc.assemble_matrix(J, self.a, bcs=self.bcs)
         else:
             self.K.copy(J, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
-            fem_petsc.assemble_matrix(J, self.a_vary, bcs=self.bcs)  # adds; Γ_D diagonal stays 1
+            if self.a_vary is not None:
+                fem_petsc.assemble_matrix(J, self.a_vary, bcs=self.bcs)  # adds; Γ_D diagonal stays 1
+        if self.contact is not None:
+            with self.phases("contact"):
+                self.contact.add_jacobian(J, self.fixed_dofs)  # off the Γ_D rows and columns
         J.assemble()
+
+    def _add_contact(self, b):
+        """b += the Γ_C terms assembled beside UFL, at the iterate in u (before b's ghost update)."""
+        if self.contact is not None:
+            with self.phases("contact"), b.localForm() as b_local:
+                self.contact.add_residual(b_local.array_w)
 
     def linear_floor(self):
         """Seconds to assemble and solve once the Jacobian system at the current u with this solver's
@@ -468,11 +491,14 @@ def load_part(F):
     return ufl.Form([itg for itg in F.integrals() if itg.integral_type() == "cell"])
 
 
-def condition_estimate(J, bcs, comm, max_its=20000):
-    """(lambda_min, lambda_max) of the assembled Jacobian on the free dofs, from the Lanczos
-    tridiagonal that unpreconditioned CG builds (KSPComputeEigenvalues); the rhs vanishes on
-    Dirichlet rows, so the identity rows bcs put there never enter the Krylov space."""
+def condition_estimate(J, bcs, comm, max_its=20000, contact=None):
+    """(lambda_min, lambda_max) of the assembled Jacobian (with the `contact` term beside UFL, at its
+    u_h) on the free dofs, from the Lanczos tridiagonal that unpreconditioned CG builds
+    (KSPComputeEigenvalues); the rhs vanishes on Dirichlet rows, so the identity rows bcs put there
+    never enter the Krylov space."""
     A = fem_petsc.assemble_matrix(fem.form(J), bcs=bcs)
+    if contact is not None:
+        contact.add_jacobian(A, contact_.dirichlet_mask(contact.u_h.function_space, bcs))
     A.assemble()
     b = A.createVecRight()
     start, end = b.getOwnershipRange()

@@ -35,5 +35,6 @@ def penetration(u_h, domain):
 
 def condition_number(problem):
     """lambda_max / lambda_min of the Jacobian at u_h on the free dofs (Lanczos estimate from CG)."""
-    lam_min, lam_max = solver.condition_estimate(problem.J, problem.bcs, problem.u_h.function_space.mesh.comm)
+    lam_min, lam_max = solver.condition_estimate(problem.J, problem.bcs, problem.u_h.function_space.mesh.comm,
+                                                 contact=problem.contact)
     return lam_max / lam_min

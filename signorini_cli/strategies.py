@@ -34,11 +34,13 @@ class Problem:
     dim: int
     split: object = None  # model.Split: Newton assembles the load and stiffness once per solve
     bounds: tuple = None
+    contact: object = None  # contact.ContactTerm: the Γ_C terms assembled beside the UFL forms
 
 
 def problem(forms, u_h, bcs, eps, eps_value, dim, bounds=None):
-    """The Problem of model.Forms `forms` (the split included) at eps_value."""
-    return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds)
+    """The Problem of model.Forms `forms` (the split and the contact term included) at eps_value."""
+    return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds,
+                   getattr(forms, "contact", None))
 
 
 def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
@@ -180,7 +182,8 @@ class Newton:
         # the VI keeps PETSc's own test of vinewtonrsls, on the reduced residual
         test = solver.success_test(solver_cfg) if problem.bounds is None else None
         self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs, self.options(),
-                                        monitor=monitor, test=test, phases=phases, split=problem.split)
+                                        monitor=monitor, test=test, phases=phases, split=problem.split,
+                                        contact=problem.contact)
         if problem.bounds is not None:
             self.snes.snes.setVariableBounds(*problem.bounds)
         self.fell_back = False

@@ -13,7 +13,7 @@ from mpi4py import MPI
 
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
-from signorini_cli import cli, solver, strategies, study
+from signorini_cli import cli, contact, solver, strategies, study
 from conftest import BASE, merge
 
 NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature point with x < 0.5
@@ -257,8 +257,9 @@ def test_petsc_options_from_config(make_config, dim, solver_cfg, expected):
 def test_condition_estimate_matches_dense_eigenvalues(make_config, monkeypatch):
     cfg = make_config(mesh={"refinements": [8]}, epsilon={"law": "constant", "theta": 1e-4})
     problem = solved_problem(cfg, monkeypatch)
-    lam_min, lam_max = solver.condition_estimate(problem.J, problem.bcs, MPI.COMM_SELF)
+    lam_min, lam_max = solver.condition_estimate(problem.J, problem.bcs, MPI.COMM_SELF, contact=problem.contact)
     A = fem_petsc.assemble_matrix(fem.form(problem.J), bcs=problem.bcs)
+    problem.contact.add_jacobian(A, contact.dirichlet_mask(problem.u_h.function_space, problem.bcs))
     A.assemble()
     free = np.setdiff1d(np.arange(A.getSize()[0]), problem.bcs[0].dof_indices()[0])
     eigenvalues = scipy.linalg.eigvalsh(A.convert("dense").getDenseArray()[np.ix_(free, free)])
@@ -278,3 +279,50 @@ def solved_problem(cfg, monkeypatch):
     monkeypatch.setattr(strategies, "solve", spy)
     study.solve_level(cfg, 0, cfg.mesh.refinements[0], MPI.COMM_SELF)
     return seen[-1]
+
+
+# --- the Γ_C terms assembled beside UFL (issue 17) ------------------------------------------------------
+
+@pytest.mark.parametrize("alpha", [1.5, 2.0, 3.0])
+@pytest.mark.parametrize("dimension", [2, 3])
+def test_jacobian_is_the_derivative_of_the_residual(make_config, monkeypatch, alpha, dimension):
+    cube = {"dimension": 3, "mesh": {"kind": "unit_cube", "refinements": [3]},
+            "problem": {"exact": "sin(2*pi*x)*sin(pi*y)*(1-z)**2"}}
+    square = {"mesh": {"refinements": [4]}}
+    cfg = make_config(alpha=alpha, epsilon={"law": "constant", "theta": 1e-2}, **(cube if dimension == 3 else square))
+    problem = solved_problem(cfg, monkeypatch)
+    newton = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs, {}, split=problem.split,
+                                 contact=problem.contact)
+    newton.assemble_fixed()
+    x, d = newton.x.duplicate(), newton.x.duplicate()
+    n = x.getLocalSize()
+    # vertex values of size >= 0.1 (away from the kink of psi at 0) and of either sign
+    x.setArray(np.random.default_rng(3).uniform(0.1, 1.0, n) * np.sign(np.sin(np.arange(n) + 0.5)))
+    fem_petsc.set_bc(x, problem.bcs)  # the solver's iterates satisfy the Dirichlet condition
+    d.setArray(np.cos(np.arange(n)))
+    fem_petsc.set_bc(d, problem.bcs, scale=0.0)
+    delta = 1e-5
+    F_plus, F_minus, Jd = newton.b.duplicate(), newton.b.duplicate(), newton.b.duplicate()
+    newton.assemble_residual(x + delta * d, F_plus)
+    newton.assemble_residual(x - delta * d, F_minus)
+    newton.assemble_residual(x, newton.b)  # leaves x in u: the Jacobian's point
+    newton.assemble_jacobian(newton.A)
+    newton.A.mult(d, Jd)
+    difference = (F_plus - F_minus) / (2 * delta)
+    # central differences: truncation delta^2 |F'''| ~ 1e-10 |J d| (psi is smooth off its kink, and no
+    # vertex value is near it) and round-off 1e-16 |F| / delta ~ 1e-11 |J d|
+    assert (difference - Jd).norm() <= 1e-7 * Jd.norm()
+    newton.destroy()
+
+
+FIGURE = {"alpha": 1.0, "epsilon": {"law": "constant", "theta": 1e-8}, "mesh": {"refinements": [16, 64]}}
+
+
+def test_default_settings_give_the_exactly_integrated_p1_solution(make_config):
+    # issue 17: 2-D, u_ex = sin(2 pi x)(1-y)^2, alpha = 1, eps = 1e-8, exact positive part, the contact term
+    # integrated exactly: L2 = 5.800452e-3 (N = 16) and 4.055548e-4 (N = 64) from scikit-fem and NGSolve
+    # (agreeing to 5e-12); 1e-6 relative is the issue's requirement (the figures' 7 digits)
+    levels = study.run_study(make_config(**FIGURE), comm=MPI.COMM_SELF)
+    assert all(level.outcome.converged for level in levels)
+    assert levels[0].errors["L2"] == pytest.approx(5.800452e-3, rel=1e-6)
+    assert levels[1].errors["L2"] == pytest.approx(4.055548e-4, rel=1e-6)
