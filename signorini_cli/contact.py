@@ -294,10 +294,9 @@ class ContactTerm:
         u_fn = lambda x: self.u_exact(x, eps)  # noqa: E731
         if self.rule == "vertex":
             self._data = self.sizes[:, None] / self.dofs.shape[1] * psi(u_fn(self.points), self.alpha)
-        elif self.dofs.shape[1] == 2:
-            self._data = data_on_segments(u_fn, self.alpha, self.points)
         else:
-            self._data = data_on_triangles(u_fn, self.alpha, self.points)
+            rule = data_on_segments if self.dofs.shape[1] == 2 else data_on_triangles
+            self._data = canonical(rule, u_fn, self.alpha, self.points)
         self._data_eps = eps
 
     def residual(self, u):
@@ -339,6 +338,18 @@ class ContactTerm:
         if len(self.dofs):  # (petsc4py divides by the number of blocks)
             index = np.where(fixed[self.dofs], -1, self.dofs).astype(PETSc.IntType)  # PETSc skips index -1
             A.setValuesLocalRCV(index, index, self.jacobian(self.u_h.x.array), addv=PETSc.InsertMode.ADD)
+
+
+def canonical(rule, u_fn, alpha, points):
+    """rule(u_fn, alpha, points) with each facet's vertices in lexicographic order of their coordinates,
+    its (facets, n+1) result put back in the facet's own order: the adaptive rules start from a facet's first
+    vertex, and they agree with themselves to ~1e-12 only, so a facet numbered otherwise (on another
+    partition) would otherwise give other round-off."""
+    order = np.lexsort(np.moveaxis(points, -1, 0)[::-1], axis=-1)  # (facets, n+1): by x, then y, then z
+    sorted_values = rule(u_fn, alpha, np.take_along_axis(points, order[..., None], axis=1))
+    values = np.empty_like(sorted_values)
+    np.put_along_axis(values, order, sorted_values, axis=1)
+    return values
 
 
 def dirichlet_mask(V, bcs):
