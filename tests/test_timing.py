@@ -9,7 +9,8 @@ from signorini_cli import cli, rates, results, study, timing
 from conftest import merge
 
 # Errors of small studies before the speed work (split assembly, lagged AMG set-up, CG + AMG above
-# 20k dofs in 2-D, Kuhn-grid transfer), measured at commit a36b394 with the same configs.
+# 20k dofs in 2-D, Kuhn-grid transfer), measured at commit a36b394 with the same configs (and the
+# degree-6 rule on Γ_C of that time, pinned below: the exact integrals of issue 17 are another problem).
 BEFORE = {
     "2d-direct": ([8, 16, 32, 64], [0.02302875422745809, 0.006129464021754069, 0.00158699924498441, 0.000404401585214019],
                   [0.5740863864425357, 0.29145611107937885, 0.14620579770892386, 0.07315297106065981]),
@@ -39,7 +40,7 @@ def test_phases_accumulate_and_take_the_slowest_rank():
 @pytest.mark.parametrize("scene", list(BEFORE))
 def test_errors_unchanged_by_the_speed_work(scene, make_config):
     refinements, l2, h1 = BEFORE[scene]
-    cfg = make_config(**merge(SCENES[scene], {"mesh": {"refinements": refinements}}))
+    cfg = make_config(**merge(SCENES[scene], {"mesh": {"refinements": refinements}, "contact_quadrature": 6}))
     levels = study.run_study(cfg, comm=MPI.COMM_SELF)
     # Newton stops at a correction <= stol = 1e-7 relative, after a step that squared the one before:
     # both runs are at the discrete solution to ~1e-14 (observed); 1e-9 is the solver's tolerance squared-ish
