@@ -30,7 +30,7 @@ class Forms:
     u_exact: object  # UFL expression, or None for data-only scenes
     ds_c: ufl.Measure
     split: Split = None
-    contact: object = None  # contact.ContactTerm: the Γ_C terms integrated beside UFL (contact_quadrature exact/vertex)
+    contact: object = None  # contact.ContactTerm: Γ_C terms integrated beside UFL (contact_quadrature exact, vertex)
 
 
 def positive_part(u, positive, h, eps):
