@@ -30,7 +30,7 @@ class Forms:
     u_exact: object  # UFL expression, or None for data-only scenes
     ds_c: ufl.Measure
     split: Split = None
-    contact: object = None  # contact.ContactTerm: the Γ_C terms integrated beside UFL (contact_quadrature exact/vertex)
+    contact: object = None  # contact.ContactTerm: Γ_C terms integrated beside UFL (contact_quadrature exact, vertex)
 
 
 def positive_part(u, positive, h, eps):
@@ -76,7 +76,7 @@ def data(cfg, msh, eps, u_exact, n):
 
 
 def forms(cfg, domain, u_h, eps):
-    """F(u_h; v) = ∫ ∇u_h·∇v + (1/eps) ∫_Γc [u_h]_+^alpha v − ∫ f v − (1/eps) ∫_Γc g v, and J = dF/du.
+    """F(u_h; v) = ∫ ∇u_h·∇v + (1/eps) ∫_Γc [u_h]_+^alpha v − ∫ f v − (1/eps) ∫_Γc g v; J = dF/du.
     With contact_quadrature exact or vertex the kinked Γ_C terms, (1/eps)∫[u_h]_+^alpha v (exact positive
     part) and (1/eps)∫[u_ex]_+^alpha v of g, live in Forms.contact, outside the UFL forms."""
     msh = domain.mesh

@@ -40,6 +40,23 @@ def test_positive_part_smooth_default_delta():
     assert cfg.positive_part.kind == "smooth" and cfg.positive_part.delta.text == "1e-2*h*sqrt(eps)"
 
 
+@pytest.mark.parametrize("value", ["exact", "vertex", 6])
+def test_contact_quadrature(value):
+    assert load({}).contact_quadrature == "exact"  # issue 17: the exact integrals by default
+    cfg = load({"contact_quadrature": value})
+    assert cfg.contact_quadrature == value and config.to_dict(cfg)["contact_quadrature"] == value
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"contact_quadrature": 0}, "must be >= 1, got 0"),
+    ({"contact_quadrature": "gauss"}, "'gauss' is not one of exact, vertex"),
+    ({"contact_quadrature": "vertex", "positive_part": "smooth"}, "vertex lumps the exact positive part"),
+])
+def test_contact_quadrature_rejected(changes, message):
+    with pytest.raises(config.ConfigError, match=f"^contact_quadrature: {message}"):
+        load(changes)
+
+
 def test_override_applies_before_validation():
     cfg = config.loads(yaml.safe_dump(BASE), ["epsilon.theta=10", "solver.max_it=7"])
     assert cfg.epsilon.theta == 10.0 and cfg.solver.max_it == 7

@@ -92,10 +92,8 @@ def test_moments_of_constant_and_integer_powers():
     assert m1[0] == pytest.approx([1 / 12, 1 / 4], rel=1e-15)
 
 
-U_EX = "sin(7*x)*cos(3*y) + 0.1"  # zeros cross the facets at random places
-
-
 def u_numpy(points):
+    """sin(7x) cos(3y) + 0.1: its zeros cross the facets at random places."""
     return np.sin(7 * points[..., 0]) * np.cos(3 * points[..., 1]) + 0.1
 
 
@@ -103,7 +101,10 @@ def mpmath_segment_data(p0, p1, alpha):
     """∫_S [u]_+^alpha lambda_i by mpmath, split at the zeros of u (found on a fine grid)."""
     mpmath.mp.dps = 25
     p0, p1 = [mpmath.mpf(float(v)) for v in p0[:2]], [mpmath.mpf(float(v)) for v in p1[:2]]
-    g = lambda t: mpmath.sin(7 * (p0[0] + t * (p1[0] - p0[0]))) * mpmath.cos(3 * (p0[1] + t * (p1[1] - p0[1]))) + 0.1  # noqa: E731,E501
+
+    def g(t):
+        x, y = p0[0] + t * (p1[0] - p0[0]), p0[1] + t * (p1[1] - p0[1])
+        return mpmath.sin(7 * x) * mpmath.cos(3 * y) + 0.1
     grid = [mpmath.mpf(k) / 64 for k in range(65)]
     cut = [0] + [mpmath.findroot(g, (a, b), solver="anderson") for a, b in zip(grid, grid[1:])
                  if (g(a) > 0) != (g(b) > 0)] + [1]
