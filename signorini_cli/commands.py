@@ -222,7 +222,8 @@ def _outputs(cfg, result, summary):
     rows = results.table(result)
     written = report.write(report.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
                            plots=cfg.output.plots)
-    return "\n".join([f"study {cfg.study}: {cfg.output_dir}", report.format_table(rows, cfg),
+    header = f"study {cfg.study}: {cfg.output_dir} (contact term: contact_quadrature {cfg.contact_quadrature})"
+    return "\n".join([header, report.format_table(rows, cfg),
                       verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
 
 

@@ -278,6 +278,7 @@ def _write_attrs(h5, cfg, mpi_size, status):
     h5.attrs["config"] = cfg.text
     h5.attrs["config_resolved"] = yaml.safe_dump(config.to_dict(cfg), sort_keys=False)
     h5.attrs["study"] = cfg.study
+    h5.attrs["contact_quadrature"] = str(cfg.contact_quadrature)  # the discrete problem's contact rule
     h5.attrs["mpi_size"] = mpi_size
     h5.attrs["date"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     if status is not None:

@@ -95,7 +95,9 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
     dofs = solver.global_dofs(V)
-    extra = dict(domain.columns, **stability.report(cfg, problem, domain, outcome, dofs))
+    # the discrete problem's contact rule, on every row: a rates.csv says which problem it solved (issue 17)
+    extra = dict(domain.columns, contact_quadrature=str(cfg.contact_quadrature),
+                 **stability.report(cfg, problem, domain, outcome, dofs))
     with phases("errors"):
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
         errors = measure.errors(u_h, forms.u_exact) if forms.u_exact is not None else {}
