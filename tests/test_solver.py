@@ -134,10 +134,10 @@ def test_polished_by_the_quadratic_model():
     assert TEST.polished(1e-6, 1e-2, 1.0)
     # Θ = 1e-3: predicted 1e-12 > 1e-13, one more step
     assert not TEST.polished(1e-6, 1e-3, 1.0)
-    # a step half the previous or more: the steps stopped contracting (round-off floor)
-    assert TEST.polished(1e-15, 2e-15, 1.0) and TEST.polished(3e-15, 2e-15, 1.0)
+    # a step half the previous or more: the steps stopped contracting (round-off floor, after success)
+    assert TEST.stalled(1e-15, 2e-15) and TEST.stalled(3e-15, 2e-15) and not TEST.stalled(0.9e-15, 2e-15)
     # no previous full step: no prediction
-    assert not TEST.polished(1e-20, None, 1.0)
+    assert not TEST.polished(1e-20, None, 1.0) and not TEST.stalled(1.0, None)
 
 
 class FakeVec:
@@ -199,6 +199,14 @@ def test_polish_withdraws_a_premature_success():
     assert fake._accepted is None
     assert step_to(fake, 5, 1e-12, previous=1.0) == solver.CONVERGED_STEP  # and succeeds at 5, polished
     assert fake._accepted is None
+
+
+def test_polish_not_stopped_by_a_stall_at_success():
+    fake = fake_newton()
+    step_to(fake, 2, 1e-4)
+    # (S) passes at 3 with a step 0.4 of the previous (a semismooth step that changed the active set): polish
+    assert step_to(fake, 3, 4e-8, previous=1e-7) is None
+    assert step_to(fake, 4, 3e-8, previous=4e-8) == solver.CONVERGED_STEP  # stalled after success: stop
 
 
 def test_polish_at_most_polish_steps():
