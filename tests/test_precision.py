@@ -34,8 +34,8 @@ def test_default_errors_equal_tight_solve(tmp_path, name):
     assert {variant: status for variant, (status, _, _) in runs.items()} == dict.fromkeys(runs, cli.EXIT_OK)
     found = precision["deviations"](runs["default"][2], runs["tight"][2])
     assert len(found) >= 8  # every level's (or ε's) error columns were compared
-    # the issue's bound: the algebraic error of each reported quantity <= 1e-6 of it (observed: 9.8e-10,
-    # data-push pos_gc_scaled_ref at N = 32; 1.5e-9, sweep L2 at ε = 1e-8)
+    # the issue's bound: the algebraic error of each reported quantity <= 1e-6 of it (observed: 8.2e-15,
+    # data-push pos_gc_scaled_ref at N = 64; 1.4e-14, sweep L2 at ε = 1e-8)
     assert max(d[5] for d in found) <= 1e-6
     # the check can fail: without the polish the columns moved by 4.2e-5 (data-push, L2_gc_ref at N = 64)
     # and 1.2e-5 (sweep, L2 at ε = 1e-8) in this run; the issue reports 2.7e-5 and 6.5e-5

@@ -130,15 +130,15 @@ def test_success_nan_inf_diverge(norms):
     assert TEST(1, **norms) == solver.DIVERGED_NAN
 
 
-def test_polished_by_the_quadratic_model():
-    # Θ = 1e-6 / 1e-2 = 1e-4: predicted error Θ^2 * 1e-6 = 1e-14 <= POLISH_TOL (1e-13) * ||u|| = 1e-13
-    assert TEST.polished(1e-6, 1e-2, 1.0)
-    # Θ = 1e-3: predicted 1e-12 > 1e-13, one more step
-    assert not TEST.polished(1e-6, 1e-3, 1.0)
-    # a step half the previous or more: the steps stopped contracting (round-off floor)
-    assert TEST.polished(1e-15, 2e-15, 1.0) and TEST.polished(3e-15, 2e-15, 1.0)
+def test_polished_by_the_first_order_estimate():
+    # Θ = 9e-10 / 1e-5: estimated error Θ * 9e-10 = 8.1e-14 <= POLISH_TOL (1e-13) * ||u|| = 1e-13
+    assert TEST.polished(9e-10, 1e-5, 1.0)
+    # Θ = 1e-2: estimated 1e-11 > 1e-13, one more step (the quadratic model would have said 1e-13)
+    assert not TEST.polished(1e-9, 1e-7, 1.0)
+    # a step half the previous or more: the steps stopped contracting (round-off floor, after success)
+    assert TEST.stalled(1e-15, 2e-15) and TEST.stalled(3e-15, 2e-15) and not TEST.stalled(0.9e-15, 2e-15)
     # no previous full step: no prediction
-    assert not TEST.polished(1e-20, None, 1.0)
+    assert not TEST.polished(1e-20, None, 1.0) and not TEST.stalled(1.0, None)
 
 
 class FakeVec:
@@ -202,6 +202,14 @@ def test_polish_withdraws_a_premature_success():
     assert fake._accepted is None
 
 
+def test_polish_not_stopped_by_a_stall_at_success():
+    fake = fake_newton()
+    step_to(fake, 2, 1e-4)
+    # (S) passes at 3 with a step 0.4 of the previous (a semismooth step that changed the active set): polish
+    assert step_to(fake, 3, 4e-8, previous=1e-7) is None
+    assert step_to(fake, 4, 3e-8, previous=4e-8) == solver.CONVERGED_STEP  # stalled after success: stop
+
+
 def test_polish_at_most_polish_steps():
     fake = fake_newton()
     assert step_to(fake, 3, 4e-8) is None
@@ -214,11 +222,11 @@ def check_polish_steps(comm, make_config):
     plain = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}, solver={"polish": 0}), comm=comm)
     assert all(lv.outcome.converged and lv.outcome.correction is not None for lv in polished + plain)
     # at most solver.polish (3) Newton steps per level, none where the success test passed late enough
-    # (observed 1, 1, 0: at N = 16 the quadratic model already predicts an error below 1e-13 ||u||)
+    # (observed 1, 1, 1)
     extra = [p.outcome.newton_its - q.outcome.newton_its for p, q in zip(polished, plain)]
     assert all(0 <= e <= 3 for e in extra) and sum(extra) >= 1
     # the same solution to the 1e-6, the polish moving the error by what stol allowed (observed
-    # 3.4e-10 and 1.3e-8 on the levels it polished)
+    # 3.4e-10, 1.3e-8 and 2.9e-13)
     for p, q in zip(polished, plain):
         assert p.errors["L2"] == pytest.approx(q.errors["L2"], rel=1e-6)
 
