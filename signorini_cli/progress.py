@@ -48,14 +48,17 @@ class Progress:
         print(line, file=self.stream, flush=True)
 
 
+SHOWN_NORMS = 2  # L2 and H1 (or their _ref twins): a line stays within 120 columns
+
+
 def level_line(row):
-    """level, N, dofs, eps, Newton iterations, errors with rates, time: one line."""
+    """level, N, dofs, eps, Newton iterations, the first two errors with rates, time: one line."""
     parts = [f"level {row['level']}", f"N={row['N']}", f"dofs={row['dofs']}", f"eps={row['epsilon']:.3e}"]
     if row["converged"]:
         parts.append(f"newton {row['newton_its']}")
     else:
         parts.append(f"NOT CONVERGED after {row['newton_its']} ({row['reason']})")
-    for norm in norms([row]):
+    for norm in norms([row])[:SHOWN_NORMS]:  # the rest are in the table at the end and in rates.csv
         if row.get(norm) is not None:
             rate = row[f"rate_{norm}"]
             parts.append(f"{norm} {row[norm]:.3e}" + (f" (rate {rate:.2f})" if rate is not None else ""))
