@@ -23,7 +23,7 @@ def test_check_prints_every_default(tmp_path, capsys):
                                   "strategy": "auto", "method": "newtonls", "stol": 1e-7,
                                   "preconditioner": "boomeramg", "linear_rtol": 1e-10, "linear_fallback": True,
                                   "inexact": False, "continuation": {"start": 1.0, "factor": 0.1, "max_steps": 20},
-                                  "condition_max_dofs": 0, "linear_floor": False}
+                                  "condition_max_dofs": 0, "linear_floor": False, "polish": 3}
     assert resolved["output"]["plots"] is True and resolved["output"]["fields"] is False
     assert resolved["positive_part"] == {"kind": "exact"} and resolved["mesh"]["diagonal"] == "right"
     assert "refinements: [4, 8]" in out
