@@ -42,10 +42,12 @@ def test_readme_states_the_corpus_counts():
     assert counts_line() in readme, f"README.md should say: {counts_line()}"
 
 
-def test_corpus_is_complete():
-    assert len(CORPUS) >= 40
+def test_corpus_cases_are_distinct_and_state_their_message():
+    """Every case states the one line it must get (its first line) and no case repeats another."""
+    texts = [path.read_bytes() for path in CORPUS]
+    assert len(set(texts)) == len(texts), "a case repeats another"
     for path in CORPUS:
-        assert path.read_bytes().startswith(b"# expect: "), path.name
+        assert path.read_bytes().startswith(b"# expect: ") and case(path)[0].strip(), path.name
 
 
 @parametrize_corpus
