@@ -95,9 +95,7 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
     dofs = solver.global_dofs(V)
-    # the discrete problem's contact rule, on every row: a rates.csv says which problem it solved (issue 17)
-    extra = dict(domain.columns, contact_quadrature=str(cfg.contact_quadrature),
-                 **stability.report(cfg, problem, domain, outcome, dofs))
+    extra = dict(domain.columns, **problem_columns(cfg), **stability.report(cfg, problem, domain, outcome, dofs))
     with phases("errors"):
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
         errors = measure.errors(u_h, forms.u_exact) if forms.u_exact is not None else {}
@@ -113,6 +111,14 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     level.time_s = comm.allreduce(time.perf_counter() - start - measuring, op=MPI.MAX)
     level.timings = timing_columns(outcome, phases, comm, mesh_peak_mb)
     return level
+
+
+PROBLEM_COLUMNS = ("contact_quadrature",)
+
+
+def problem_columns(cfg):
+    """What every row says of the discrete problem it solved: the contact term's rule (issue 17)."""
+    return {"contact_quadrature": str(cfg.contact_quadrature)}
 
 
 def timing_columns(outcome, phases, comm, mesh_peak_mb):

@@ -50,7 +50,8 @@ class Verifier:
         quantities = self._quantities(level, domain, u_h, forms, wanted)
         level.errors.update(errors)
         self._columns(level, errors, quantities, wanted, has_contact)
-        self.previous = u_h if converged else self.previous
+        if "diff" in wanted and converged:  # kept for the successive differences only: a whole level's mesh
+            self.previous = u_h
 
     def _against_reference(self, level, u_h, wanted, has_contact):
         u_ref, converged, seconds = self.reference.solution(self.reference.eps_for(level.eps), u_h)

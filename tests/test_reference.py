@@ -57,7 +57,7 @@ def test_data_only_scene_columns_and_cache(make_config):
     cfg = make_config(epsilon={"law": "constant", "theta": 0.1}, mesh={"refinements": [4, 8, 16]}, **DATA_ONLY)
     levels = study.run_study(cfg, comm=MPI.COMM_SELF)
     extra = levels[-1].extra
-    assert [c for c in extra if c not in stability.SOLVER_COLUMNS][:4] == ["L2_ref", "rate_L2_ref", "H1_ref",
+    assert [c for c in extra if c not in stability.SOLVER_COLUMNS + study.PROBLEM_COLUMNS][:4] == ["L2_ref", "rate_L2_ref", "H1_ref",
                                                                          "rate_H1_ref"]
     assert {"diff_L2", "rate_diff_H1", "penetration", "contact_measure", "contact_force", "energy"} <= set(extra)
     assert not {"L2", "H1"} & set(levels[0].errors)  # no exact solution, no exact-error columns

@@ -48,7 +48,7 @@ def test_manufactured_study_gamma_c_columns(make_config):
 def test_only_asked_measures(make_config):
     cfg = make_config(verification={"measures": ["penetration"]})
     levels = study.run_study(cfg, comm=MPI.COMM_SELF)
-    assert [c for c in levels[0].extra if c not in stability.SOLVER_COLUMNS] == ["penetration"]
+    assert [c for c in levels[0].extra if c not in stability.SOLVER_COLUMNS + study.PROBLEM_COLUMNS] == ["penetration"]
     assert set(levels[0].errors) == {"L2", "H1"}
 
 
