@@ -93,6 +93,8 @@ def test_data_only_scene_two_ranks_match_one(tmp_path):
         assert set(p.errors) == set(s.errors) and list(p.extra) == list(s.extra)
         for name, value in p.errors.items():
             assert value == pytest.approx(s.errors[name], rel=RTOL), name
+        # the solver's own diagnostics (the last Newton correction: ~1e-15 ||u_h|| after the polish) follow
+        # the partition's round-off; the measured columns must not
         for name, value in p.extra.items():
-            if value is not None and not name.endswith("time_s"):
+            if value is not None and not name.endswith("time_s") and name not in stability.SOLVER_COLUMNS:
                 assert value == pytest.approx(s.extra[name], rel=RTOL), name
