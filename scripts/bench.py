@@ -380,10 +380,6 @@ def _choice_cell(row):
     return f"{row['newton_its']:.0f} / {row['t_newton']:.2f} / {l2} / {row['peak_memory_mb']:.0f}"
 
 
-if __name__ == "__main__":
-    main()
-
-
 def report_cost(repeats=3):
     """Issue 16: `signorini report` of the demo's 2-D study with N = 8..512 (7 levels), with its default
     figures and with --no-plots, each in fresh processes (best of `repeats`); a section of the page."""
@@ -406,3 +402,7 @@ def report_cost(repeats=3):
                       f"{repeats} fresh processes: {seconds['with figures']:.2f} s with its default figures "
                       f"(convergence, work–precision, Newton; PNG and PDF), {seconds['--no-plots']:.2f} s with "
                       f"`--no-plots`: {ratio:.2f}× (target ≤ 2.5×).", ""])
+
+
+if __name__ == "__main__":
+    main()
