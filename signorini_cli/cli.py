@@ -2,15 +2,10 @@
 [-petsc_option [value] ...]`; check, init, list, report and compare."""
 import sys
 
-try:  # Ctrl-C while the modules load (MPI starts here too): one line, no traceback
+try:  # Ctrl-C while the modules load (MPI starts with commands' imports): one line, no traceback
     import argparse
-    import dataclasses
     import logging
     import re
-    from pathlib import Path
-
-    import yaml
-    from mpi4py import MPI
 
     from . import __version__, commands, config, guard
     from .commands import EXIT_BAD_INPUT, EXIT_EXPECTATION_NOT_MET, EXIT_NOT_CONVERGED, EXIT_OK  # noqa: F401
@@ -18,9 +13,6 @@ try:  # Ctrl-C while the modules load (MPI starts here too): one line, no traceb
 except KeyboardInterrupt:
     print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
     sys.exit(130)
-
-logger = logging.getLogger(__name__)
-
 
 
 CONFIG_HELP = f"study config (YAML; its keys: {config.DOCS}, or `signorini init`)"

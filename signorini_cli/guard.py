@@ -192,8 +192,13 @@ class Watch:
                 timings = self.levels[-1].timings
                 timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
                 self.recorded = len(self.levels)
-        fault_hook(len(list(self.levels)), self.comm)
+        fault_hook(self.solved, self.comm)
         return rows
+
+    @property
+    def solved(self):
+        """The solves recorded so far (levels; an ε-sweep's or total-error study's solves)."""
+        return len(list(self.levels))
 
     def finish(self, draw):
         """draw() (tables and figures, on rank 0) -> its result; status.txt says complete only after it."""
@@ -221,7 +226,7 @@ class Watch:
         """The status a study ending with `err` leaves."""
         if not status(self.cfg, self.levels, final=False).startswith("running"):
             return status(self.cfg, self.levels)  # stopped by on_failure: stop before it came
-        k = len(list(self.levels))
+        k = self.solved
         where = (f"at level {k}" if k < self.cfg.solves
                  else f"while writing tables and figures (all {k} levels done)")
         if isinstance(err, Interrupted):
@@ -232,7 +237,7 @@ class Watch:
         """What the one line on stderr adds: where the study stood and how to go on."""
         if state.startswith(("interrupted ", "failed ")):
             where = state.split(" ", 1)[1].split(":")[0]
-            return (f" {where}: the {len(list(self.levels))} finished level(s) are in {self.cfg.output_dir}; "
+            return (f" {where}: the {self.solved} finished level(s) are in {self.cfg.output_dir}; "
                     "continue with --resume")
         return f" as the study ended ({state}): results in {self.cfg.output_dir}"
 

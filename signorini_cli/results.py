@@ -1,6 +1,7 @@
 """The study's record on disk, rewritten atomically after every solve: rates.csv, summary.csv,
 work_precision.csv and study.h5 for refinement and signorini studies; sweep.csv, fitted.csv and
 reference.csv (ε-sweeps) or total.csv and one folder per sub-study (total error) beside their study.h5."""
+import contextlib
 import csv
 import datetime
 import functools
@@ -131,14 +132,11 @@ def _write_limit_files(cfg, result, mpi_size, status):
 
 
 def _write_limit_h5(path, cfg, named, mpi_size, status):
-    import h5py
-    buffer = io.BytesIO()  # as _write_h5: a full disk is a plain OSError
-    with h5py.File(buffer, "w") as h5:
+    with _h5_in_memory(path) as h5:
         _write_attrs(h5, cfg, mpi_size, status)
         h5.attrs["study_type"] = cfg.study_type
         for name, rows in named.items():
             _write_table(h5.create_group(name), rows)
-    Path(path).write_bytes(buffer.getvalue())
 
 
 # --- the ε → 0 studies' tables (docs/limit.md) -------------------------------------------------------
@@ -254,11 +252,7 @@ def versions():
 
 
 def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
-    import h5py
-    # built in memory, then written as bytes: a full disk is then a plain OSError, never an HDF5 file
-    # left half-closed (h5py raises RuntimeError and HDF5 crashes with SEGV at exit)
-    buffer = io.BytesIO()
-    with h5py.File(buffer, "w") as h5:
+    with _h5_in_memory(path) as h5:
         _write_attrs(h5, cfg, mpi_size, status)
         h5.attrs["levels_done"] = len(levels)
         h5.attrs["config_hash"] = fingerprint(cfg)  # --resume continues only under the same hash
@@ -269,6 +263,16 @@ def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
             _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row)
         if summary is not None:
             verdict.write_h5(h5.create_group("verification"), summary)
+
+
+@contextlib.contextmanager
+def _h5_in_memory(path):
+    """An HDF5 file built in memory, then written to `path` as bytes: a full disk is then a plain OSError,
+    never an HDF5 file left half-closed (h5py raises RuntimeError and HDF5 crashes with SEGV at exit)."""
+    import h5py
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as h5:
+        yield h5
     Path(path).write_bytes(buffer.getvalue())
 
 

@@ -39,8 +39,7 @@ class Problem:
 
 def problem(forms, u_h, bcs, eps, eps_value, dim, bounds=None):
     """The Problem of model.Forms `forms` (the split and the contact term included) at eps_value."""
-    return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds,
-                   getattr(forms, "contact", None))
+    return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds, forms.contact)
 
 
 def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
