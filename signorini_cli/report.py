@@ -16,7 +16,7 @@ PAPER_LEADING = ("N", "h", "epsilon", "newton_its")  # what a paper shows before
 TERMINAL_WIDTH = 120
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
-FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f"})
+FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})
 SPEC_ORDER = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
               "L2", "rate_L2", "H1", "rate_H1", "time_s")
 FIT_LEVELS = 3  # fitted slopes without a config: verification.fit_levels' default
@@ -121,7 +121,7 @@ def _format(column, value):
         return "-"
     if isinstance(value, bool):
         return ("yes" if value else "NO") if column == "converged" else ("yes" if value else "no")
-    if column.startswith("rate_"):
+    if column.startswith(("rate_", "fit_")):  # fit_: the fitted slopes of the ε → 0 tables
         return f"{value:.2f}"
     if column in FORMATS:
         return f"{value:{FORMATS[column]}}"
@@ -441,26 +441,7 @@ def limit_summary(cfg, named, written):
 
 
 def format_rows(rows):
-    """A right-aligned text table: floats .3e, rates and fitted slopes .2f, '-' for missing values."""
+    """A right-aligned text table of any rows (the ε → 0 studies' tables), cells as in the rate table."""
     if not rows:
         return "(nothing solved)"
-    columns = list(rows[0])
-    cells = [[_row_cell(c, row[c]) for c in columns] for row in rows]
-    widths = [max(len(c), *(len(line[i]) for line in cells)) for i, c in enumerate(columns)]
-    lines = ["  ".join(c.rjust(w) for c, w in zip(columns, widths))]
-    lines += ["  ".join(cell.rjust(w) for cell, w in zip(line, widths)) for line in cells]
-    return "\n".join(lines)
-
-
-def _row_cell(column, value):
-    if value is None:
-        return "-"
-    if isinstance(value, bool):
-        return "yes" if value else "NO"
-    if column in ("alpha", "p"):
-        return f"{value:g}"
-    if column.startswith(("rate_", "fit_")) or column == "time_s":
-        return f"{value:.2f}"
-    if isinstance(value, float):
-        return f"{value:.3e}"
-    return str(value)
+    return "\n".join(_aligned([("", [(c, [_format(c, row[c]) for row in rows]) for c in rows[0]])]))
