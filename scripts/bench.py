@@ -7,6 +7,7 @@ import csv
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import time
@@ -49,6 +50,9 @@ CHOICE_RUNS = (("square-direct", "square", 1, (UP_TO_512, "solver.linear=direct"
                                                   "solver.petsc_options.snes_lag_preconditioner=-2")),
                ("square-iterative", "square", 1, (UP_TO_512, "solver.linear=iterative")),
                ("square-inexact", "square", 1, (UP_TO_512, "solver.linear=iterative", "solver.inexact=true")))
+# the speed-up pair runs twice each and keeps its faster run (the finest level's wall time), as issue 15
+# measured it: on this shared virtual machine one run's finest level varies by up to 20 %
+BEST_OF = {"square": 2, "square-2-ranks": 2}
 # the targets of issues 6 and 15, checked on the runs named
 TARGETS = {"floor_ratio": 2.0, "exponent": 1.15, "speedup": 1.6, "kb_per_dof": 1.0, "study_over_floors": 3.0,
            "largest_rank_4": 0.45, "contact_share": 0.10, "tutorial_ratio": 0.5}
@@ -90,7 +94,25 @@ def machine_facts():
 
 
 def run(name, config, ranks, overrides):
-    """One study in a fresh process; (rows of its rates.csv as floats, process wall time, exit status)."""
+    """One study in a fresh process, or the best of BEST_OF[name] (by the finest level's wall time); (rows
+    of its rates.csv as floats, process wall time, exit status, the finest level's time in every attempt)."""
+    tries = []
+    for attempt in range(BEST_OF.get(name, 1)):
+        tried = f"{name}.try{attempt}"
+        run_once(tried, config, ranks, overrides)
+        tries.append(read_run(tried, config, ranks, overrides)["rows"][-1]["time_s"])
+    best = RUNS / f"{name}.try{int(np.argmin(tries))}"
+    shutil.rmtree(RUNS / name, ignore_errors=True)
+    best.rename(RUNS / name)
+    for attempt in range(len(tries)):
+        shutil.rmtree(RUNS / f"{name}.try{attempt}", ignore_errors=True)
+    facts = json.loads((RUNS / name / "bench.json").read_text())
+    (RUNS / name / "bench.json").write_text(json.dumps(dict(facts, attempts=tries)))
+    return read_run(name, config, ranks, overrides)
+
+
+def run_once(name, config, ranks, overrides):
+    """One study in a fresh process, its output in results/bench/<name>."""
     out = RUNS / name
     command = (MPIRUN + [str(ranks)] if ranks > 1 else []) + SIGNORINI + [
         "run", str(CONFIGS / f"{config}.yaml"), "--force", "--quiet", "--output", str(out)]
@@ -100,7 +122,6 @@ def run(name, config, ranks, overrides):
     start = time.perf_counter()
     status = subprocess.run(command, cwd=ROOT, env=dict(os.environ, **MPI_ENV)).returncode
     (out / "bench.json").write_text(json.dumps({"wall_s": time.perf_counter() - start, "status": status}))
-    return read_run(name, config, ranks, overrides)
 
 
 def read_run(name, config, ranks, overrides):
@@ -191,7 +212,9 @@ def page(runs, machine):
              "of a level is one assembly and solve of the Jacobian system at the converged solution with the "
              "level's own linear solver and tolerance, in the same run (`solver.linear_floor: true`); the "
              "*nonlinear solve* is `t_newton`, the SNES solves of the level (its initial guess, `t_transfer`, "
-             "is timed apart). Times in seconds, wall clock, largest over ranks.", "",
+             "is timed apart). Times in seconds, wall clock, largest over ranks. The speed-up pair (`square`, "
+             "`square-2-ranks`) runs twice each and keeps the run whose finest level was faster, as issue 15 "
+             "measured it (both times are in its section).", "",
              "## Targets", "", "| target | run | measured | target | met |", "|---|---|---|---|---|"]
     for what, where, value, limit, met, sense in targets(runs):
         lines.append(f"| {what} | {where} | {value:.2f} | {sense} {limit} | {'yes' if met else '**no**'} |")
@@ -267,13 +290,22 @@ def limits_note(runs):
     return notes
 
 
+def best_of(result):
+    """' Best of k runs ...' for a run repeated (BEST_OF), else ''."""
+    tries = result.get("attempts") or []
+    if len(tries) < 2:
+        return ""
+    return (f" Best of {len(tries)} runs by the finest level's wall time ("
+            + ", ".join(f"{t:.2f} s" for t in tries) + "): the table is the faster run.")
+
+
 def study_section(name, result):
     rows = result["rows"]
     overrides = ", ".join(f"`--set {o}`" for o in result["overrides"]) or "defaults"
     lines = [f"## {name}", "", f"{result['ranks']} rank(s), {overrides}; exit status {result['status']}, "
              f"process wall time {result['wall_s']:.1f} s (imports and JIT included), study time "
              f"{study_time(rows):.1f} s, sum of linear floors {floors(rows):.2f} s; exponent of t_newton vs dofs "
-             f"over the last {FIT_LEVELS} levels {exponent(rows):.2f}.", "",
+             f"over the last {FIT_LEVELS} levels {exponent(rows):.2f}.{best_of(result)}", "",
              "| N | dofs | Newton its | linear its | L2 | " + " | ".join(c[2:] if c.startswith("t_") else c
                                                                   for c in PHASE_COLUMNS) + " | peak MiB | kB/dof |",
              "|---" * (7 + len(PHASE_COLUMNS)) + "|"]

@@ -10,9 +10,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 import dolfinx.mesh
-from dolfinx import cpp
 
-from .domain import CONTACT, domain_of, tag_facets
+from .domain import CONTACT, domain_of, facet_vertices, tag_facets
 
 INSIDE_TOL = 1e-8  # relative; refined centroids are >= 1/6 inside their parent facet, rounding ~1e-16
 
@@ -27,15 +26,6 @@ def refine(domain):
     tags = tag_facets(child, lambda boundary: in_simplices(facet_vertices(child, boundary).mean(axis=1),
                                                            contact_facets))
     return domain_of(child, tags, child.topology.index_map(child.topology.dim).size_global)
-
-
-def facet_vertices(msh, facets):
-    """(len(facets), d, 3): the vertex coordinates of each facet."""
-    fdim = msh.topology.dim - 1
-    if len(facets) == 0:
-        return np.zeros((0, fdim + 1, 3))
-    dofs = cpp.mesh.entities_to_geometry(msh._mesh, fdim, np.asarray(facets, dtype=np.int32), False)
-    return msh.geometry.x[dofs]
 
 
 def in_simplices(points, simplices, tol=INSIDE_TOL):

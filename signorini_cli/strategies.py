@@ -117,14 +117,29 @@ def auto(newton, problem, previous, solver_cfg):
 STRATEGIES = {"plain": plain, "nested": nested, "continuation": continuation, "auto": auto}
 
 
+class Handoff:
+    """The last converged level's u_h on its way to the next level's initial guess, which moves it onto
+    its own mesh and leaves the moved function here in its place: the coarser mesh is let go of before
+    the finer level's solve (issue 15: memory per dof), and a level that fails still hands the last
+    converged solution on (the same function on nested meshes)."""
+
+    def __init__(self, u_h=None):
+        self.u_h = u_h
+
+    def onto(self, V):
+        self.u_h = transfer(self.u_h, V, extend=True)
+        return self.u_h
+
+
 def initial_guess(u_h, previous):
-    """Zero, or the previous level's solution moved onto u_h's mesh (exact for P1 on nested
-    meshes, MPI-correct: transfer.transfer; extended affinely beyond a curved boundary the coarser
-    mesh does not reach). Dirichlet values are set by the solver."""
-    if previous is None:
-        u_h.x.array[:] = 0.0
-    else:
-        u_h.x.array[:] = transfer(previous, u_h.function_space, extend=True).x.array
+    """Zero, or the previous level's solution (a Function or a Handoff) moved onto u_h's mesh (exact for P1
+    on nested meshes, MPI-correct: transfer.transfer; extended affinely beyond a curved boundary the
+    coarser mesh does not reach). Dirichlet values are set by the solver."""
+    if isinstance(previous, Handoff):
+        previous = previous.onto(u_h.function_space) if previous.u_h is not None else None
+    elif previous is not None:
+        previous = transfer(previous, u_h.function_space, extend=True)
+    u_h.x.array[:] = 0.0 if previous is None else previous.x.array
     u_h.x.scatter_forward()
 
 

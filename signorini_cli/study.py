@@ -44,12 +44,13 @@ def run_refinement(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=(
     if done and not done[-1].outcome.converged and cfg.solver.on_failure == "stop":
         return levels  # the study had already stopped there
     verifier = verification.Verifier(cfg, comm)
-    previous = resume_verifier(cfg, done, comm, verifier)
+    previous = strategies.Handoff(resume_verifier(cfg, done, comm, verifier))
     for index, n in enumerate(cfg.mesh.levels):
         if index < len(done):
             continue
         levels.append(solve_level(cfg, index, n, comm, monitor, verifier, previous))
-        previous = levels[-1].solution if levels[-1].outcome.converged else previous
+        if levels[-1].outcome.converged:
+            previous = strategies.Handoff(levels[-1].solution)
         levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
         verification.add_rates(levels)
         if on_level is not None:
@@ -80,7 +81,8 @@ def resume_verifier(cfg, done, comm, verifier):
 
 def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None, previous=None):
     """Build, solve and measure the level with n cells per side (or the level's entry of mesh.levels);
-    `previous`, the last converged level's u_h, is the initial guess of nested strategies.
+    `previous`, the last converged level's u_h (or a strategies.Handoff of it), is the initial guess of nested
+    strategies.
     time_s is the level's wall time from mesh to measures; the t_* columns split it (timing.PHASES)."""
     start, phases = time.perf_counter(), timing.Phases()
     with phases("mesh"):

@@ -277,8 +277,8 @@ def test_condition_estimate_matches_dense_eigenvalues(make_config, monkeypatch):
     assert lam_max == pytest.approx(eigenvalues[-1], rel=1e-8)
 
 
-def solved_problem(cfg, monkeypatch):
-    """The Problem of cfg's first level, solved in serial (caught on its way to strategies.solve)."""
+def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
+    """The Problem of cfg's first level, solved (caught on its way to strategies.solve)."""
     seen, original = [], strategies.solve
 
     def spy(solver_cfg, problem, previous=None, monitor=None, phases=None):
@@ -286,8 +286,57 @@ def solved_problem(cfg, monkeypatch):
         return original(solver_cfg, problem, previous, monitor, phases)
 
     monkeypatch.setattr(strategies, "solve", spy)
-    study.solve_level(cfg, 0, cfg.mesh.refinements[0], MPI.COMM_SELF)
+    study.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
     return seen[-1]
+
+
+# --- one matrix: the stiffness assembled into J once, the rows the Γ_C terms touch reset each step ---------
+
+def check_split_jacobian(comm, make_config, monkeypatch, rule):
+    # α = 1.5, ε = 1e-2: the exact rule adds the penalty beside UFL, degree 6 through UFL's J_varying (ds)
+    cfg = make_config(alpha=1.5, contact_quadrature=rule, epsilon={"law": "constant", "theta": 1e-2},
+                      mesh={"refinements": [8]})
+    problem = solved_problem(cfg, monkeypatch, comm)
+    newton = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs, {}, split=problem.split,
+                                 contact=problem.contact)
+    whole, x = newton.A.duplicate(), newton.x.duplicate()
+    rng = np.random.default_rng(comm.rank)
+    for _ in range(3):  # successive iterates with other active sets: each reset undoes the last step's terms
+        x.setArray(rng.uniform(-1.0, 1.0, x.getLocalSize()))
+        fem_petsc.set_bc(x, problem.bcs)
+        newton.assemble_residual(x, newton.b)  # leaves x in u: the Jacobian's point
+        newton.assemble_jacobian(newton.A)
+        newton.assemble_jacobian(whole, whole=True)  # zeroed and assembled from the whole form
+        difference = newton.A.copy()
+        difference.axpy(-1.0, whole)
+        # the same sums of the same element contributions in another order: round-off (observed ~1e-16)
+        assert difference.norm() <= 1e-13 * whole.norm()
+    for mat in (whole, difference):
+        mat.destroy()
+    newton.destroy()
+
+
+@pytest.mark.parametrize("rule", ["exact", 6])
+def test_split_jacobian_is_the_whole_jacobian(make_config, monkeypatch, rule):
+    check_split_jacobian(MPI.COMM_SELF, make_config, monkeypatch, rule)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("rule", ["exact", 6])
+def test_split_jacobian_is_the_whole_jacobian_two_ranks(make_config, monkeypatch, rule):
+    assert MPI.COMM_WORLD.size == 2
+    check_split_jacobian(MPI.COMM_WORLD, make_config, monkeypatch, rule)
+
+
+def test_varying_rows_are_the_contact_rows(make_config, monkeypatch):
+    # N = 8, Γ_C = bottom: the exact rule touches the 9 rows of Γ_C's vertices; degree 6 (UFL's ds form)
+    # the rows of every vertex of the 8 cells on Γ_C, the 9 and the 8 above them
+    for rule, expected in (("exact", 9), (6, 17)):
+        problem = solved_problem(make_config(contact_quadrature=rule, mesh={"refinements": [8]}), monkeypatch)
+        newton = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs, {}, split=problem.split,
+                                     contact=problem.contact)
+        assert len(newton.K_rows.rows) == expected
+        newton.destroy()
 
 
 # --- the Γ_C terms assembled beside UFL (issue 17) ------------------------------------------------------
