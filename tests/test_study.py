@@ -1,7 +1,11 @@
 """Manufactured studies reach the paper's rates; the demo level matches an independent value."""
+import gc
+import weakref
+
+import numpy as np
 import pytest
 
-from signorini_cli import results, study
+from signorini_cli import results, solver, strategies, study, transfer
 
 
 def last_rates(cfg):
@@ -47,3 +51,50 @@ def test_stop_on_failure_ends_study(make_config):
     levels = study.run_study(make_config(solver={"max_it": 1, "on_failure": "stop"}))
     assert len(levels) == 1 and not levels[0].outcome.converged
     assert levels[0].outcome.reason == "DIVERGED_MAX_IT"
+
+
+# --- what a finer level holds of the coarser one (issue 15: memory per dof) ---------------------------
+
+def test_finer_level_solves_without_the_coarser_mesh(make_config, monkeypatch):
+    # nested iteration: once level 2 has taken its initial guess, nothing holds level 1's mesh any more
+    meshes, alive_at_solve = [], []
+    original = solver.NewtonSolver.solve
+
+    def solve(newton):
+        gc.collect()
+        alive_at_solve.append([ref() is not None for ref in meshes])
+        meshes.append(weakref.ref(newton.u.function_space.mesh))
+        return original(newton)
+
+    monkeypatch.setattr(solver.NewtonSolver, "solve", solve)
+    levels = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}))
+    assert all(lv.outcome.converged for lv in levels)
+    assert alive_at_solve == [[], [False], [False, False]]
+
+
+def test_failed_level_hands_on_the_last_converged_solution(make_config, monkeypatch):
+    # level 2 fails (max_it 0 there); level 3 still starts from level 1's solution, moved through level 2's
+    # mesh (exact on nested meshes): its initial guess is level 1's u_h interpolated, to round-off
+    guesses, original = {}, strategies.initial_guess
+    first = {}
+
+    def initial_guess(u_h, previous):
+        original(u_h, previous)
+        guesses[u_h.function_space.dofmap.index_map.size_global] = u_h.copy()
+
+    def run(newton, eps):
+        n = newton.problem.u_h.function_space.dofmap.index_map.size_global
+        if n == 81:  # N = 8: fail at once
+            return solver.Outcome(False, "DIVERGED_MAX_IT", 0, 0, ())
+        outcome = run_original(newton, eps)
+        first.setdefault(n, newton.problem.u_h.copy())
+        return outcome
+
+    run_original = strategies.Newton.run
+    monkeypatch.setattr(strategies, "initial_guess", initial_guess)
+    monkeypatch.setattr(strategies.Newton, "run", run)
+    levels = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}, solver={"strategy": "nested"}))
+    assert [lv.outcome.converged for lv in levels] == [True, False, True]
+    expected = transfer.transfer(first[25], guesses[289].function_space)  # level 1 (N = 4) moved onto N = 16
+    assert np.allclose(guesses[289].x.array, expected.x.array, rtol=0, atol=1e-14)
+    assert np.abs(expected.x.array).max() > 0.1
