@@ -238,7 +238,7 @@ def polish_note(runs):
     return ["The polish (issue 17, `solver.polish`: Newton steps after success until the quadratic model "
             "predicts an algebraic error <= 1e-13 ||u_h||), square study without the floor: Newton iterations "
             f"{its[0]:.0f} -> {its[1]:.0f}, Newton time {newton[0]:.2f} s -> {newton[1]:.2f} s "
-            f"(+{newton[1] / newton[0] - 1:.0%}).", "",
+            f"({newton[1] / newton[0] - 1:+.0%}).", "",
             f"The whole default run of the demo's 2-D study on N = 8..512, figures included: "
             f"{tutorial['signorini_s']:.2f} s, against {tutorial['script_s']:.2f} s for "
             "`scripts/tutorial_baseline.py` (the same problem as the FEniCSx tutorial writes it: Newton from zero "

@@ -507,8 +507,10 @@ def varying_rows(V, a_vary, contact):
         cell_dofs = V.dofmap.list.array.reshape(V.dofmap.list.num_nodes, -1)
         for kind in a_vary.integral_types:
             for i in a_vary.integral_ids(kind):
-                width = 1 if kind == fem.IntegralType.cell else 2  # (cell) or (cell, local facet) pairs
-                local.append(cell_dofs[np.asarray(a_vary.domains(kind, i)).reshape(-1, width)[:, 0]].ravel())
+                # cells, (cell, local facet) pairs, or (cell, facet, cell, facet) for interior facets
+                entries = {fem.IntegralType.cell: 1, fem.IntegralType.exterior_facet: 2}.get(kind, 4)
+                cells = np.asarray(a_vary.domains(kind, i)).reshape(-1, entries)[:, ::2]
+                local.append(cell_dofs[cells.ravel()].ravel())
     marks = la.vector(V.dofmap.index_map, V.dofmap.index_map_bs)  # owners learn of the rows others mark
     if local:
         marks.array[np.concatenate(local)] = 1.0
