@@ -290,7 +290,8 @@ def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
     return seen[-1]
 
 
-# --- one matrix: the stiffness assembled into J once, the rows the Γ_C terms touch reset each step ---------
+# --- one matrix: the stiffness assembled into J once, the rows the Γ_C terms touch reset each step; the
+# residual's stiffness part is a product with J ---------------------------------------------------------
 
 def check_split_jacobian(comm, make_config, monkeypatch, rule):
     # α = 1.5, ε = 1e-2: the exact rule adds the penalty beside UFL, degree 6 through UFL's J_varying (ds)
@@ -299,31 +300,35 @@ def check_split_jacobian(comm, make_config, monkeypatch, rule):
     problem = solved_problem(cfg, monkeypatch, comm)
     newton = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs, {}, split=problem.split,
                                  contact=problem.contact)
-    whole, x = newton.A.duplicate(), newton.x.duplicate()
+    newton.assemble_fixed()
+    whole, x, F_whole = newton.A.duplicate(), newton.x.duplicate(), newton.b.duplicate()
     rng = np.random.default_rng(comm.rank)
     for _ in range(3):  # successive iterates with other active sets: each reset undoes the last step's terms
         x.setArray(rng.uniform(-1.0, 1.0, x.getLocalSize()))
         fem_petsc.set_bc(x, problem.bcs)
-        newton.assemble_residual(x, newton.b)  # leaves x in u: the Jacobian's point
+        # the residual: K x from J (whose Γ_C rows hold the last step's terms) against the whole form
+        newton.assemble_residual(x, newton.b)
+        newton.assemble_residual(x, F_whole, whole=True)  # leaves x in u: the Jacobian's point
+        assert (newton.b - F_whole).norm() <= 1e-13 * F_whole.norm()
         newton.assemble_jacobian(newton.A)
         newton.assemble_jacobian(whole, whole=True)  # zeroed and assembled from the whole form
         difference = newton.A.copy()
         difference.axpy(-1.0, whole)
         # the same sums of the same element contributions in another order: round-off (observed ~1e-16)
         assert difference.norm() <= 1e-13 * whole.norm()
-    for mat in (whole, difference):
-        mat.destroy()
+    for obj in (whole, difference, F_whole):
+        obj.destroy()
     newton.destroy()
 
 
 @pytest.mark.parametrize("rule", ["exact", 6])
-def test_split_jacobian_is_the_whole_jacobian(make_config, monkeypatch, rule):
+def test_split_residual_and_jacobian_are_the_whole_forms(make_config, monkeypatch, rule):
     check_split_jacobian(MPI.COMM_SELF, make_config, monkeypatch, rule)
 
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("rule", ["exact", 6])
-def test_split_jacobian_is_the_whole_jacobian_two_ranks(make_config, monkeypatch, rule):
+def test_split_residual_and_jacobian_are_the_whole_forms_two_ranks(make_config, monkeypatch, rule):
     assert MPI.COMM_WORLD.size == 2
     check_split_jacobian(MPI.COMM_WORLD, make_config, monkeypatch, rule)
 
