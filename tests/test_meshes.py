@@ -178,3 +178,19 @@ def test_shipped_configs_same_errors_serial(path, monkeypatch):
 @pytest.mark.parametrize("path", shipped_built_in_configs())
 def test_shipped_configs_same_errors_parallel(path, monkeypatch):
     compare_with_dolfinx_meshes(path, MPI.COMM_WORLD, monkeypatch)
+
+
+@pytest.mark.parametrize("kind, diagonal", KINDS)
+@pytest.mark.parametrize("comm", [pytest.param(MPI.COMM_SELF, id="serial"),
+                                  pytest.param(MPI.COMM_WORLD, id="world", marks=pytest.mark.mpi)])
+def test_cell_diameters_are_dolfinx_mesh_h(kind, diagonal, comm):
+    # on a distorted grid (every cell its own diameter), bit for bit the numbers of dolfinx's mesh.h, which
+    # meshes used before (and which builds the cell-to-cell connectivity cell_diameters avoids)
+    dim = 2 if kind == "unit_square" else 3
+    msh = grids.create(comm, dim, 5, diagonal)
+    x = msh.geometry.x
+    x[:, :dim] += 0.03 * np.sin(7 * x[:, :dim] + np.arange(dim))
+    owned = np.arange(msh.topology.index_map(dim).size_local, dtype=np.int32)
+    expected = dolfinx.cpp.mesh.h(msh._mesh, dim, owned)
+    assert np.array_equal(meshes.cell_diameters(msh, chunk=7), expected)
+    assert len(np.unique(np.concatenate(comm.allgather(expected)))) >= 10  # distorted: not the grid's one or two
