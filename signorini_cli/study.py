@@ -100,7 +100,7 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     extra = dict(domain.columns, **problem_columns(cfg), **stability.report(cfg, problem, domain, outcome, dofs))
     with phases("errors"):
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
-        errors = measure.errors(u_h, forms.u_exact) if forms.u_exact is not None else {}
+        errors = measure.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
         level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
         if verifier is not None:  # Γ_C measures, reference errors (issue 4)
             verifier.measure(level, domain, u_h, forms)
@@ -160,7 +160,7 @@ def signorini_level(cfg, index, domain, start, previous=None, monitor=None):
     u_exact = model.exact_solution(cfg, domain.mesh, None)
     bc = model.dirichlet_condition(V, domain, u_exact)
     outcome, forms = vi.solve(cfg, domain, u_h, bc, previous, monitor)
-    errors = measure.errors(u_h, u_exact) if u_exact is not None else {}
+    errors = measure.errors(u_h, u_exact, domain.h) if u_exact is not None else {}
     state = vi.contact_state(forms, u_h, domain, bc)
     extra = {"contact_nodes": state.nodes, "contact_measure": state.measure,
              "contact_force": state.force, "pressure_max": state.pressure_max}

@@ -79,7 +79,7 @@ def test_contact_force_and_errors_of_a_known_function():
                                              ("unit_cube", 64, measure.FINE_ERROR_DEGREE)])  # h = 0.027
 def test_error_degree_by_level(kind, n, degree):
     domain = meshes.build(config.Mesh(kind), "bottom", n, MPI.COMM_SELF)
-    assert measure.error_degree(domain.mesh) == degree
+    assert measure.error_degree(domain.h) == degree
 
 
 @pytest.mark.parametrize("comm", [pytest.param(MPI.COMM_SELF, id="serial"),
@@ -95,7 +95,7 @@ def test_fine_level_errors_as_with_degree_12(comm):
     e = u_h - u_ex
     accurate = {"L2": np.sqrt(measure.integrate(e**2, dx)),
                 "H1": np.sqrt(measure.integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx))}
-    assert measure.errors(u_h, u_ex) == pytest.approx(accurate, rel=1e-9)
+    assert measure.errors(u_h, u_ex, domain.h) == pytest.approx(accurate, rel=1e-9)
 
 
 @pytest.mark.parametrize("comm", [pytest.param(MPI.COMM_SELF, id="serial"),
