@@ -54,7 +54,7 @@ run: setup
 # `make studies` re-runs only the configs (or all of them after a package change) that changed. Exit 1
 # (a level did not converge, an `expect:` rate missed) is recorded, not fatal: the page targets name those
 # studies after writing their page. --output-sync keeps each study's lines together under -j.
-PACKAGE := pyproject.toml $(wildcard signorini_cli/*.py)
+PACKAGE := pyproject.toml $(wildcard signorini_cli/*.py signorini_cli/*/*.py)
 MADE := results/.make
 MAKEFLAGS += --output-sync=target
 # $(call run,config,extra arguments,launcher): run it, record its status (0 or 1; anything else fails)
@@ -89,7 +89,7 @@ docs/verification.md: $(PAPER_STAMPS) scripts/verification_page.py scripts/prove
 
 # gmsh meshes of every config's geometry levels into meshes/cache/ (studies also fill it on demand)
 meshes: setup
-	$(PY) -m signorini_cli.geometries $(CONFIGS)
+	$(PY) -m signorini_cli.meshing.geometries $(CONFIGS)
 
 # configs/gmsh studies serially and on $(NP) ranks, then docs/geometries.md from their tables
 GMSH_CONFIGS := $(shell find configs/gmsh -name '*.yaml' | sort)

@@ -20,7 +20,7 @@ import provenance
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "bench" / "configs"
 RUNS = ROOT / "results" / "bench"
-SIGNORINI = [sys.executable, "-m", "signorini_cli.cli"]
+SIGNORINI = [sys.executable, "-m", "signorini_cli.app.cli"]
 MPIRUN = ["mpirun", "--oversubscribe", "-n"]  # + the number of ranks
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
            "OMPI_MCA_rmaps_base_oversubscribe": "1"}

@@ -11,7 +11,9 @@ from pathlib import Path
 import h5py
 
 import provenance
-from signorini_cli import config, plots, rates
+from signorini_cli import config
+from signorini_cli.analysis import rates
+from signorini_cli.report import plots
 
 PLOT = "limit-model-error.png"
 

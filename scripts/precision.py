@@ -13,7 +13,9 @@ from pathlib import Path
 import yaml
 
 import provenance
-from signorini_cli import cli, rates, solver
+from signorini_cli.analysis import rates
+from signorini_cli.app import cli
+from signorini_cli.solve import solver
 
 ROOT = Path(__file__).resolve().parent.parent
 AGREE = 1e-6  # the bound: the algebraic error of a reported quantity <= 1e-6 of it

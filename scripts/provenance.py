@@ -4,7 +4,7 @@ from pathlib import Path
 
 import h5py
 
-from signorini_cli import results
+from signorini_cli.record import results
 
 
 def runs(folders):

@@ -19,7 +19,8 @@ import numpy as np
 import yaml
 
 import provenance
-from signorini_cli import cli, config
+from signorini_cli import config
+from signorini_cli.app import cli
 
 ROOT = Path(__file__).resolve().parent.parent
 EASY_ITS = 3  # the target: at most 3 Newton iterations after the first level with strategy auto
@@ -516,7 +517,7 @@ def limit_section(found):
     return "\n".join([
         "## The limit ε → 0: which rule tends to the discrete Signorini solution", "",
         "u_{S,h}, the discrete Signorini solution with the nodal constraint u_h ≤ 0 at the Γ_C vertices, is "
-        "solved directly as a variational inequality (`signorini_cli/vi.py`, PETSc's vinewtonrsls), and each rule's "
+        "solved directly as a variational inequality (`signorini_cli/problems/vi.py`, PETSc's vinewtonrsls), and each rule's "
         "u_{ε,h} on the same mesh is measured against it down ε = 1e-2 … 1e-14 (`study_type: epsilon_sweep`; "
         f"2-D: `{LIMIT_2D.relative_to(ROOT)}` on N = {LIMIT_LEVELS[2]}, 3-D: f = 10 sin(2πx), u = 0 on Γ_D, on "
         f"N = {LIMIT_LEVELS[3]}). 'fitted slope': of log(L2 difference) against log ε over the smallest ε; "

@@ -55,7 +55,8 @@ class Interrupt(Exception):
 @pytest.fixture
 def partial_study(make_config):
     """A 3-level study stopped after its second level: what a killed run leaves on disk."""
-    from signorini_cli import results, study
+    from signorini_cli import studies
+    from signorini_cli.record import results
     cfg = make_config(mesh={"refinements": [4, 8, 16]})
 
     def write_then_stop(levels):
@@ -64,5 +65,5 @@ def partial_study(make_config):
             raise Interrupt
 
     with pytest.raises(Interrupt):
-        study.run_study(cfg, on_level=write_then_stop)
+        studies.run_study(cfg, on_level=write_then_stop)
     return cfg

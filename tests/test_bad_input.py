@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from mpi4py import MPI
 
-from signorini_cli import cli
+from signorini_cli.app import cli
 
 CORPUS = sorted((Path(__file__).parent / "bad_input").glob("*.yaml"))
 parametrize_corpus = pytest.mark.parametrize("path", CORPUS, ids=[p.stem for p in CORPUS])

@@ -6,7 +6,8 @@ import os
 import pytest
 import yaml
 
-from signorini_cli import cli, config
+from signorini_cli import config
+from signorini_cli.app import cli
 from conftest import BASE, merge
 
 

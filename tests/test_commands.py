@@ -5,7 +5,9 @@ import sys
 import pytest
 import yaml
 
-from signorini_cli import cli, commands, config, results, study
+from signorini_cli import config, studies
+from signorini_cli.app import cli, commands
+from signorini_cli.record import results
 from conftest import BASE, merge
 
 
@@ -88,7 +90,7 @@ def stop_after(cfg, k):
         if len(levels) == k:
             raise Interrupt
     with pytest.raises(Interrupt):
-        study.run_study(cfg, on_level=write_then_stop)
+        studies.run_study(cfg, on_level=write_then_stop)
 
 
 def test_report_partial_study(make_config, capsys):
@@ -126,7 +128,7 @@ def test_report_not_a_study_exit_2(tmp_path, capsys):
 def test_compare_two_studies(make_config, tmp_path, capsys):
     for theta in (1, 10):
         cfg = make_config(study=f"theta{theta}", epsilon={"theta": theta})
-        results.write(cfg, study.run_study(cfg))
+        results.write(cfg, studies.run_study(cfg))
     folders = [str(tmp_path / "results" / f"theta{t}") for t in (1, 10)]
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
@@ -199,10 +201,10 @@ def test_closed_stdout_ends_quietly(make_config, command):
     stop_after(cfg, 2)
     argv = [str(cfg.output_dir) if arg == "STUDY" else arg for arg in command]
     # `signorini ... | head -1`: the reader leaves after one line
-    done = subprocess.run(f"{sys.executable} -m signorini_cli.cli {' '.join(argv)} | head -1", shell=True,
+    done = subprocess.run(f"{sys.executable} -m signorini_cli.app.cli {' '.join(argv)} | head -1", shell=True,
                           capture_output=True, text=True, timeout=120, executable="/bin/bash")
     assert done.stdout.count("\n") == 1 and done.stderr == ""
     # a reader gone before the first line (`| true` exits at once): every print meets a closed pipe
-    status = subprocess.run(["bash", "-o", "pipefail", "-c", f"{sys.executable} -m signorini_cli.cli "
+    status = subprocess.run(["bash", "-o", "pipefail", "-c", f"{sys.executable} -m signorini_cli.app.cli "
                              f"{' '.join(argv)} | true"], capture_output=True, timeout=120)
     assert status.returncode == 0 and status.stderr == b""

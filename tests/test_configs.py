@@ -4,7 +4,8 @@ from pathlib import Path
 import pytest
 from mpi4py import MPI
 
-from signorini_cli import config, rates, study
+from signorini_cli import config, studies
+from signorini_cli.analysis import rates
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = sorted(ROOT.glob("configs/**/*.yaml"))
@@ -36,7 +37,7 @@ def test_config_header_cites_the_proven_rates(path):
 
 @parametrize_configs
 def test_config_runs_coarse(path, tmp_path):
-    levels = study.run_study(coarse(path, tmp_path), comm=MPI.COMM_SELF)
+    levels = studies.run_study(coarse(path, tmp_path), comm=MPI.COMM_SELF)
     assert all(lv.outcome.converged for lv in levels)
 
 
@@ -44,5 +45,5 @@ def test_config_runs_coarse(path, tmp_path):
 @parametrize_configs
 def test_config_runs_coarse_two_ranks(path, tmp_path):
     assert MPI.COMM_WORLD.size == 2
-    levels = study.run_study(coarse(path, tmp_path))
+    levels = studies.run_study(coarse(path, tmp_path))
     assert MPI.COMM_WORLD.allreduce(all(lv.outcome.converged for lv in levels), op=MPI.LAND)

@@ -9,7 +9,8 @@ import yaml
 from mpi4py import MPI
 from scipy import integrate
 
-from signorini_cli import config, contact, study
+from signorini_cli import config, studies
+from signorini_cli.problems import contact
 from conftest import BASE, merge
 
 ALPHAS = (1.0, 1.5, 2.0, 3.0)
@@ -154,8 +155,8 @@ def test_two_ranks_match_one(changes):
     comm = MPI.COMM_WORLD
     assert comm.size == 2
     cfg = config.loads(yaml.safe_dump(merge(BASE, dict(changes, solver={"rtol": 1e-12, "stol": 1e-12}))))
-    parallel = study.run_study(cfg, comm=comm)
-    serial = study.run_study(cfg, comm=MPI.COMM_SELF)
+    parallel = studies.run_study(cfg, comm=comm)
+    serial = studies.run_study(cfg, comm=MPI.COMM_SELF)
     for p, s in zip(parallel, serial):
         assert p.outcome.converged and s.outcome.converged
         for norm in ("L2", "H1"):  # tight solves: the two differ by round-off in the sums only

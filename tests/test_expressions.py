@@ -5,7 +5,7 @@ import re
 import numpy as np
 import pytest
 
-from signorini_cli import expressions
+from signorini_cli.config import expressions
 
 XY = ("x", "y")
 

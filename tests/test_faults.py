@@ -18,7 +18,10 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from signorini_cli import cli, guard, report, results, solver
+from signorini_cli.app import cli, guard
+from signorini_cli.record import results
+from signorini_cli.report import tables
+from signorini_cli.solve import solver
 from conftest import BASE, merge
 
 SIGNORINI = str(Path(sys.executable).with_name("signorini"))
@@ -190,13 +193,13 @@ def test_sigterm_while_drawing_figures_is_not_complete(tmp_path, monkeypatch, ca
     """status.txt says complete only once the tables and figures are written; SIGTERM while they are
     drawn leaves 'interrupted while writing tables and figures', and --resume completes them."""
     config, out = write_config(tmp_path), tmp_path / "out"
-    write, seen = report.write, []
+    write, seen = tables.write, []
 
     def write_then_signal(*args, **kwargs):
         seen.append(status(out / "t"))
         os.kill(os.getpid(), signal.SIGTERM)
         return write(*args, **kwargs)
-    monkeypatch.setattr(report, "write", write_then_signal)
+    monkeypatch.setattr(tables, "write", write_then_signal)
     assert cli.main(["run", config, "--output", str(out), "--quiet"]) == 128 + signal.SIGTERM
     assert seen == ["running (2 of 2 levels done)"]
     assert status(out / "t") == "interrupted while writing tables and figures (all 2 levels done)"
@@ -289,7 +292,7 @@ def test_unused_petsc_options_are_named(tmp_path, capsys, options, unused):
     is then never read by PETSc; the run names it in one warning after its first level."""
     config = write_config(tmp_path, solver={"petsc_options": options})
     assert cli.main(["run", config, "--output", str(tmp_path / "out"), "--quiet"]) == cli.EXIT_OK
-    expected = (f"WARNING signorini_cli.commands: solver.petsc_options: {', '.join(unused)} not used by PETSc in "
+    expected = (f"WARNING signorini_cli.app.commands: solver.petsc_options: {', '.join(unused)} not used by PETSc in "
                 "level 0 (misspelt, or not an option of the solver and preconditioner in use)\n") if unused else ""
     assert capsys.readouterr().err == expected
 

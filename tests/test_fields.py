@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from signorini_cli import study
+from signorini_cli import studies
 
 
 def check_fields(cfg, levels):
@@ -26,12 +26,12 @@ def check_fields(cfg, levels):
 
 def test_fields_written_per_level(make_config):
     cfg = make_config(output={"fields": True})
-    check_fields(cfg, study.run_study(cfg))
+    check_fields(cfg, studies.run_study(cfg))
 
 
 def test_fields_one_grid_for_paraview_and_meshio(make_config):
     cfg = make_config(mesh={"refinements": [4]}, output={"fields": True})
-    (level,) = study.run_study(cfg)
+    (level,) = studies.run_study(cfg)
     path = cfg.output_dir / "fields" / "level_00.xdmf"
     grids = ET.parse(path).getroot().findall("Domain/Grid")  # meshio: "Only supports one grid"
     assert len(grids) == 1 and [a.get("Name") for a in grids[0].findall("Attribute")] == ["u_h", "error", "contact"]
@@ -46,7 +46,7 @@ def test_fields_one_grid_for_paraview_and_meshio(make_config):
 
 def test_fields_off_by_default(make_config):
     cfg = make_config(mesh={"refinements": [4]})
-    study.run_study(cfg)
+    studies.run_study(cfg)
     assert not (cfg.output_dir / "fields").exists()
 
 
@@ -56,7 +56,7 @@ def test_fields_two_ranks(make_config, tmp_path_factory):
     assert comm.size == 2
     folder = comm.bcast(str(tmp_path_factory.mktemp("fields")) if comm.rank == 0 else None)
     cfg = make_config(output={"fields": True, "dir": folder})
-    levels = study.run_study(cfg)
+    levels = studies.run_study(cfg)
     failures = []
     if comm.rank == 0:
         try:

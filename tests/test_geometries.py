@@ -14,8 +14,11 @@ import yaml
 from mpi4py import MPI
 
 from dolfinx import fem
-from signorini_cli import cli, config, geometries, geometry_files, meshes, refinement, study
-from signorini_cli.meshes import CONTACT, DIRICHLET
+from signorini_cli import config, studies
+from signorini_cli.app import cli
+from signorini_cli.config import geometry_files
+from signorini_cli.meshing import geometries, meshes, refinement
+from signorini_cli.meshing.meshes import CONTACT, DIRICHLET
 from conftest import BASE, merge
 
 ROUND_OFF = 1e-12  # relative: sums of a few thousand facet measures, each exact to ~1e-16
@@ -194,7 +197,7 @@ def test_msh_round_trip_matches_generated(tmp_path, version):
     convert(cached, copy, version)
     assert geometry_files.physical_groups(copy) == {"contact": 1, "dirichlet": 1, "domain": 2}
     from_file = mesh_config(tmp_path, kind="file", path=str(copy))
-    a, b = (study.run_study(cfg, comm=MPI.COMM_SELF)[0] for cfg in (generated, from_file))
+    a, b = (studies.run_study(cfg, comm=MPI.COMM_SELF)[0] for cfg in (generated, from_file))
     # the same mesh through either path: same cells, h and Γ_C, and the same solution to solver tolerance
     assert (a.n, a.dofs, a.h) == (b.n, b.dofs, b.h)
     assert b.extra["gamma_c_measure"] == pytest.approx(a.extra["gamma_c_measure"], rel=ROUND_OFF)
@@ -221,7 +224,7 @@ def test_file_without_contact_group_is_config_error(tmp_path):
 def test_builtin_mesh_does_not_import_gmsh(tmp_path):
     script = ("import sys, yaml; from mpi4py import MPI; from signorini_cli import config, study; "
               f"cfg = config.loads(yaml.safe_dump({dict(BASE, mesh={'kind': 'unit_square', 'refinements': [2]})!r})); "
-              "study.run_study(cfg, comm=MPI.COMM_SELF); print('gmsh' in sys.modules)")
+              "studies.run_study(cfg, comm=MPI.COMM_SELF); print('gmsh' in sys.modules)")
     env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
     assert out.stdout.strip() == "False", out.stderr
@@ -237,8 +240,8 @@ def test_two_ranks_match_one_gmsh(shared_tmp, mesh):
     comm = MPI.COMM_WORLD
     assert comm.size == 2
     cfg = mesh_config(shared_tmp / "cache", **mesh)
-    parallel = study.run_study(cfg, comm=comm)
-    serial = study.run_study(cfg, comm=MPI.COMM_SELF)  # every rank solves the whole problem alone
+    parallel = studies.run_study(cfg, comm=comm)
+    serial = studies.run_study(cfg, comm=MPI.COMM_SELF)  # every rank solves the whole problem alone
     for p, s in zip(parallel, serial):
         assert p.outcome.converged and s.outcome.converged
         assert (p.n, p.dofs) == (s.n, s.dofs) and p.h == pytest.approx(s.h, rel=1e-14)

@@ -15,7 +15,11 @@ import h5py
 import pytest
 import yaml
 
-from signorini_cli import cli, guard, results, solver, study
+from signorini_cli import studies
+from signorini_cli.studies import refinement as refinement_study
+from signorini_cli.app import cli, guard
+from signorini_cli.record import results
+from signorini_cli.solve import solver
 from conftest import BASE, merge
 
 LEVELS = [4, 8, 12, 16]
@@ -58,13 +62,13 @@ def whole(tmp_path_factory):
 
 def signal_at_level(monkeypatch, level, signum):
     """Deliver `signum` to this process as `level` starts solving (after the earlier ones are written)."""
-    solve = study.solve_level
+    solve = studies.solve_level
 
     def solve_or_signal(cfg, index, n, *args):
         if index == level:
             os.kill(os.getpid(), signum)
         return solve(cfg, index, n, *args)
-    monkeypatch.setattr(study, "solve_level", solve_or_signal)
+    monkeypatch.setattr(refinement_study, "solve_level", solve_or_signal)
 
 
 def check_kept(out, k):
@@ -131,7 +135,7 @@ def test_signal_inside_newton_then_resume(whole, tmp_path, monkeypatch):
 
 def test_signal_while_writing_waits_for_the_level(tmp_path, monkeypatch):
     """A signal during the writing of level 1's results is held until they are written whole."""
-    from signorini_cli import results
+    from signorini_cli.record import results
     config, out = write_config(tmp_path), str(tmp_path / "out")
     write_files = results.write_files
 

@@ -8,7 +8,10 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from signorini_cli import cli, config, meshes, results, study
+from signorini_cli import config, studies
+from signorini_cli.app import cli
+from signorini_cli.meshing import meshes
+from signorini_cli.record import results
 from conftest import BASE, U_SIGNORINI, merge
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -65,7 +68,7 @@ def sweep_config(tmp_path, **changes):
 
 def run_sweep(tmp_path, comm=MPI.COMM_WORLD, **changes):
     cfg = sweep_config(tmp_path, **changes)
-    sweep = study.run_study(cfg, comm=comm)
+    sweep = studies.run_study(cfg, comm=comm)
     assert all(solve.outcome.converged for solve in sweep)
     return cfg, sweep
 
@@ -126,7 +129,7 @@ def test_total_error_writes_spec_tables(make_config):
     cfg = make_config(study_type="total_error", alpha=None, epsilon=None,
                       problem={"exact": U_SIGNORINI, "exact_solves": "signorini"},
                       limit={"alpha": [2], "exponent": [1, 2]})
-    total = study.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    total = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done))
     assert all(level.outcome.converged for level in total)
     assert list(total.studies) == ["alpha2-p1", "alpha2-p2", "signorini"]
     for name in total.studies:

@@ -5,7 +5,7 @@ import runpy
 import sys
 from pathlib import Path
 
-from signorini_cli import cli
+from signorini_cli.app import cli
 from conftest import BASE, U_SIGNORINI, merge
 
 SIGNORINI = {"alpha": None, "epsilon": None, "problem": {"exact": U_SIGNORINI, "exact_solves": "signorini"},

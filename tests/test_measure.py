@@ -6,8 +6,11 @@ import ufl
 from mpi4py import MPI
 
 from dolfinx import fem
-from signorini_cli import config, measure, meshes, reference
-from signorini_cli.meshes import CONTACT
+from signorini_cli import config
+from signorini_cli.meshing import meshes
+from signorini_cli.meshing.meshes import CONTACT
+from signorini_cli.problems import measure
+from signorini_cli.studies import reference
 
 # (mesh config, linear u with {u > 0} ∩ Γ_C of known measure, that measure, max of u on Γ_C)
 CASES = [

@@ -13,7 +13,8 @@ import dolfinx.graph
 import dolfinx.mesh
 from dolfinx import fem
 
-from signorini_cli import config, grids, meshes, study
+from signorini_cli import config, studies
+from signorini_cli.meshing import grids, meshes
 
 ROOT = Path(__file__).resolve().parent.parent
 KINDS = [pytest.param("unit_square", d, id=f"square-{d}") for d in ("right", "left", "crossed")]
@@ -158,9 +159,9 @@ def compare_with_dolfinx_meshes(path, comm, monkeypatch):
     only on N = 4 facets, so on 2 ranks, where the meshes are partitioned differently, it would compare the
     rule's round-off, not the meshes (the exact rule's own serial/2-rank agreement: tests/test_contact.py)."""
     cfg = dataclasses.replace(small(config.load(path)), contact_quadrature=6)
-    ours = measured(study.run_study(cfg, comm=comm))
+    ours = measured(studies.run_study(cfg, comm=comm))
     monkeypatch.setattr(grids, "create", legacy_create)
-    theirs = measured(study.run_study(cfg, comm=comm))
+    theirs = measured(studies.run_study(cfg, comm=comm))
     assert len(ours) == len(theirs) >= len(cfg.mesh.levels)
     for mine, before in zip(ours, theirs):
         assert mine.keys() == before.keys() and mine

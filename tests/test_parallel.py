@@ -10,7 +10,7 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from signorini_cli import config, study
+from signorini_cli import config, studies
 from conftest import BASE, merge
 
 RTOL = 1e-8  # issue 3: serial and parallel errors agree to 1e-8 relative (solver tolerance 1e-10)
@@ -27,8 +27,8 @@ def test_two_ranks_match_one(changes):
     comm = MPI.COMM_WORLD
     assert comm.size == 2
     cfg = config.loads(yaml.safe_dump(merge(BASE, changes)))
-    parallel = study.run_study(cfg, comm=comm)
-    serial = study.run_study(cfg, comm=MPI.COMM_SELF)  # every rank solves the whole problem alone
+    parallel = studies.run_study(cfg, comm=comm)
+    serial = studies.run_study(cfg, comm=MPI.COMM_SELF)  # every rank solves the whole problem alone
     for p, s in zip(parallel, serial):
         assert p.outcome.converged and s.outcome.converged
         assert p.dofs == s.dofs and p.h == pytest.approx(s.h, rel=1e-14)

@@ -8,7 +8,7 @@ import yaml
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.text import Text
 
-from signorini_cli import plots
+from signorini_cli.report import plots
 from conftest import BASE, merge
 
 H = [0.2, 0.1, 0.05, 0.025]

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from signorini_cli import cli
+from signorini_cli.app import cli
 from conftest import BASE, U_SIGNORINI, merge
 
 SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"

@@ -4,7 +4,8 @@ import io
 import pytest
 import yaml
 
-from signorini_cli import config, progress
+from signorini_cli import config
+from signorini_cli.report import progress
 from conftest import BASE, merge
 
 

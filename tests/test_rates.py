@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from signorini_cli import rates
+from signorini_cli.analysis import rates
 
 
 def test_observed_exact_power_law():

@@ -5,8 +5,8 @@ import pytest
 from mpi4py import MPI
 
 import dolfinx.mesh
-from signorini_cli import meshes, refinement
-from signorini_cli.meshes import CONTACT
+from signorini_cli.meshing import meshes, refinement
+from signorini_cli.meshing.meshes import CONTACT
 
 SEGMENT = np.array([[[0.0, 0.0, 0.0], [2.0, 1.0, 0.0]]])
 TRIANGLE = np.array([[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 2.0]]])

@@ -5,7 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from signorini_cli import config, report, results, study
+from signorini_cli import config, studies
+from signorini_cli.record import results
+from signorini_cli.report import tables
 
 
 def row(level, n, h, converged=True, L2=None, rate_L2=None, H1=None, rate_H1=None):
@@ -21,7 +23,7 @@ KNOWN = [row(0, 8, 0.25, L2=0.01, H1=0.5),
 
 def test_markdown_table_known():
     # h = 2/N on every level: N gives h, so the paper's columns leave it out
-    assert report.markdown_table(KNOWN, digits=2) == (
+    assert tables.markdown_table(KNOWN, digits=2) == (
         "| N | ε | its | L² error | L² rate | H¹ error | H¹ rate |\n"
         "|---:|---:|---:|---:|---:|---:|---:|\n"
         "| 8 | 2.50e-01 | 5 | 1.00e-02 | – | 5.00e-01 | – |\n"
@@ -32,7 +34,7 @@ def test_markdown_table_known():
 
 
 def test_latex_table_grouped_with_definitions_in_caption():
-    lines = report.latex_table(KNOWN[:2], digits=3, caption="Study t").splitlines()
+    lines = tables.latex_table(KNOWN[:2], digits=3, caption="Study t").splitlines()
     assert lines[:3] == [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{3pt}"]
     caption = lines[3]
     assert caption.startswith(r"\caption{Study t. $N$: cells per side") and "$h = 2/N$" in caption
@@ -49,12 +51,12 @@ def test_latex_table_grouped_with_definitions_in_caption():
 
 def test_latex_table_unknown_norm_escaped():
     rows = [dict(KNOWN[0], L2_gamma_c=0.1, rate_L2_gamma_c=None)]
-    assert r"\multicolumn{2}{c}{\texttt{L2\_gamma\_c}}" in report.latex_table(rows, columns="all")
+    assert r"\multicolumn{2}{c}{\texttt{L2\_gamma\_c}}" in tables.latex_table(rows, columns="all")
 
 
 def test_tables_without_norms_data_only_scene():
     rows = [{k: v for k, v in KNOWN[0].items() if k not in ("L2", "rate_L2", "H1", "rate_H1")}]
-    assert report.markdown_table(rows).splitlines()[0] == "| N | ε | its |"
+    assert tables.markdown_table(rows).splitlines()[0] == "| N | ε | its |"
 
 
 def demo_like(levels=7):
@@ -79,35 +81,35 @@ DEMO = config.load(Path(__file__).resolve().parent.parent / "configs" / "demo.ya
 def test_paper_columns_are_the_norms_the_paper_bounds():
     # configs/demo.yaml: L2 (Lemma 4.2), H1 (Cor. 3.2 i), [u]_+ on Γ_C (Cor. 3.2 ii), energy (Lemma 3.1);
     # no rate for L2 on Γ_C; the scaled [u]_+ is a power of the unscaled one
-    lead, shown = report.choose(demo_like(), "paper", report.proven_rates(DEMO))
+    lead, shown = tables.choose(demo_like(), "paper", tables.proven_rates(DEMO))
     assert lead == ["N", "epsilon", "newton_its"] and shown == ["L2", "H1", "pos_gc", "energy_err"]
 
 
 def test_terminal_table_fits_120_columns_all_one_option_away():
     rows = demo_like()
-    default = report.format_table(rows, DEMO).splitlines()
+    default = tables.format_table(rows, DEMO).splitlines()
     assert max(map(len, default)) <= 120 and len(default) == 2 + len(rows)
-    everything = report.format_table(rows, DEMO, columns="all").splitlines()
+    everything = tables.format_table(rows, DEMO, columns="all").splitlines()
     assert all(column in everything[1] for column in ("dofs", "t_forms", "converged"))
     assert everything[0].split() == ["L2", "H1", "L2_gc", "pos_gc", "pos_gc_scaled", "energy_err"]
 
 
 def test_columns_list_and_unknown_column():
-    lead, shown = report.choose(KNOWN, ["N", "h", "L2"])
+    lead, shown = tables.choose(KNOWN, ["N", "h", "L2"])
     assert (lead, shown) == (["N", "h"], ["L2"])
     with pytest.raises(config.ConfigError, match="output.columns: 'L3' is not a column of this study"):
-        report.choose(KNOWN, ["N", "L3"])
+        tables.choose(KNOWN, ["N", "L3"])
 
 
 def test_h_kept_when_n_does_not_give_it():
     rows = [dict(row, h=row["h"] * (1 + 0.1 * k)) for k, row in enumerate(KNOWN)]  # gmsh-like sizes
-    assert report.choose(rows)[0] == ["N", "h", "epsilon", "newton_its"]
+    assert tables.choose(rows)[0] == ["N", "h", "epsilon", "newton_its"]
 
 
 @pytest.mark.skipif(not shutil.which("pdflatex"), reason="pdflatex not installed")
 def test_default_latex_table_fits_a_default_article(tmp_path):
-    (tmp_path / "rates.tex").write_text(report.latex_table(demo_like(), 3, "Study demo",
-                                                           proven=report.proven_rates(DEMO)))
+    (tmp_path / "rates.tex").write_text(tables.latex_table(demo_like(), 3, "Study demo",
+                                                           proven=tables.proven_rates(DEMO)))
     (tmp_path / "doc.tex").write_text("\\documentclass{article}\n\\usepackage{booktabs}\n"
                                       "\\begin{document}\n\\input{rates.tex}\n\\end{document}\n")
     done = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", "doc.tex"], cwd=tmp_path,
@@ -120,13 +122,13 @@ def test_fitted_slope_reads_the_last_k_levels():
     # e = h^2 on the coarse levels, then e = h^1: the slope depends on how many levels are fitted
     h = [0.4, 0.2, 0.1, 0.05]
     e = [0.16, 0.04, 0.01, 0.005]
-    assert report.fitted_slope(h, e, k=2) == pytest.approx(1.0, rel=1e-12)
-    assert report.fitted_slope(h, e, k=3) == pytest.approx(1.5, rel=1e-12)  # slopes 2 then 1: LSQ line 1.5
-    assert report.fitted_slope(h[:1], [1.0]) is None
+    assert tables.fitted_slope(h, e, k=2) == pytest.approx(1.0, rel=1e-12)
+    assert tables.fitted_slope(h, e, k=3) == pytest.approx(1.5, rel=1e-12)  # slopes 2 then 1: LSQ line 1.5
+    assert tables.fitted_slope(h[:1], [1.0]) is None
 
 
 def test_summary_table_one_line_per_study():
-    lines = report.summary_table({"a": KNOWN, "b": KNOWN[:1]}).splitlines()
+    lines = tables.summary_table({"a": KNOWN, "b": KNOWN[:1]}).splitlines()
     assert lines[0].split() == ["L²", "H¹"] and lines[1].split()[:4] == ["study", "levels", "finest", "h"]
     # a: finest converged level N = 16 (h = 0.125), 1.5 s in all; L2 from 1e-2 to 2.5e-3 as h halves: slope 2
     assert lines[2].split() == ["a", "3", "1.250e-01", "1.50", "2.500e-03", "2.00", "2.500e-01", "1.00"]
@@ -135,7 +137,7 @@ def test_summary_table_one_line_per_study():
 
 @pytest.mark.parametrize("name", ["study.h5", "rates.csv", ""])
 def test_load_partial_study(partial_study, name):
-    loaded = report.load(partial_study.output_dir / name)
+    loaded = tables.load(partial_study.output_dir / name)
     assert loaded.name == "t" and [r["N"] for r in loaded.rows] == [4, 8]
     assert list(loaded.rows[0])[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
     assert loaded.rows[0]["rate_L2"] is None and loaded.rows[1]["rate_L2"] > 1
@@ -143,14 +145,14 @@ def test_load_partial_study(partial_study, name):
 
 
 def test_load_h5_and_csv_agree(partial_study):
-    from_h5, from_csv = (report.load(partial_study.output_dir / n) for n in ("study.h5", "rates.csv"))
+    from_h5, from_csv = (tables.load(partial_study.output_dir / n) for n in ("study.h5", "rates.csv"))
     assert from_h5.rows == from_csv.rows  # CSV floats are repr(): exact
     assert config.loads(from_h5.config_text).mesh.refinements == (4, 8, 16)  # the resolved config
 
 
 def test_load_missing_path_names_problem(tmp_path):
     with pytest.raises(FileNotFoundError, match="not a study folder"):
-        report.load(tmp_path)
+        tables.load(tmp_path)
 
 
 def cut_csv(folder):
@@ -171,8 +173,8 @@ def nan_in_n(folder):
 def test_damaged_csv_names_the_file(partial_study, damage, message):
     folder = partial_study.output_dir
     damage(folder)
-    with pytest.raises(report.DamagedResults, match=message):
-        report.load(folder / "rates.csv")
+    with pytest.raises(tables.DamagedResults, match=message):
+        tables.load(folder / "rates.csv")
 
 
 def drop_table(folder):
@@ -189,10 +191,10 @@ def truncate_h5(folder):
 @pytest.mark.parametrize("damage", [drop_table, truncate_h5])
 def test_damaged_h5_falls_back_to_rates_csv(partial_study, damage, caplog):
     folder = partial_study.output_dir
-    intact = report.load(folder / "rates.csv").rows
+    intact = tables.load(folder / "rates.csv").rows
     damage(folder)
-    assert report.load(folder).rows == intact
+    assert tables.load(folder).rows == intact
     assert "study.h5: damaged" in caplog.text and "reading" in caplog.text
     cut_csv(folder)
-    with pytest.raises(report.DamagedResults, match="study.h5: damaged.*; .*rates.csv: damaged"):
-        report.load(folder)
+    with pytest.raises(tables.DamagedResults, match="study.h5: damaged.*; .*rates.csv: damaged"):
+        tables.load(folder)

@@ -9,7 +9,10 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from signorini_cli import cli, config, geometries, geometry_files, resources
+from signorini_cli import config
+from signorini_cli.app import cli, resources
+from signorini_cli.config import geometry_files
+from signorini_cli.meshing import geometries
 from conftest import BASE, merge
 
 
@@ -27,9 +30,9 @@ def test_level_size(mesh, n, expected):
 @pytest.mark.parametrize("diagonal", ["right", "crossed"])
 def test_level_size_matches_the_mesh(make_config, diagonal):
     """The dofs formula against dolfinx (the nonzero counts are upper bounds: boundary rows have fewer)."""
-    from signorini_cli import study
+    from signorini_cli import studies
     cfg = make_config(mesh={"refinements": [6], "diagonal": diagonal})
-    (level,) = study.run_study(cfg, comm=MPI.COMM_SELF)
+    (level,) = studies.run_study(cfg, comm=MPI.COMM_SELF)
     assert resources.level_size(cfg.mesh, 6)[0] == level.dofs
 
 

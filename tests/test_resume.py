@@ -8,7 +8,9 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from signorini_cli import cli, config, resume, results, study
+from signorini_cli import config, studies
+from signorini_cli.app import cli
+from signorini_cli.record import results, resume
 from conftest import BASE, merge
 
 
@@ -28,7 +30,7 @@ def test_read_levels_round_trip(make_config):
     # from 0 (strategy plain) N=4 converges in 4 Newton steps, N=16 needs 5: a converged and a failed
     # level come back
     cfg = make_config(mesh={"refinements": [4, 16]}, solver={"max_it": 4, "strategy": "plain"})
-    levels = study.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    levels = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done))
     assert [lv.outcome.converged for lv in levels] == [True, False]
     assert resume.read_levels(cfg) == levels
 
@@ -120,7 +122,7 @@ def test_resume_two_ranks(tmp_path):
         if len(levels) == 2:
             raise Stop
     with pytest.raises(Stop):
-        study.run_study(cfg, on_level=stop_after_two)
+        studies.run_study(cfg, on_level=stop_after_two)
     assert cli.main(["run", paths["cut"], "--resume"]) == cli.EXIT_OK
     assert cli.main(["run", paths["whole"]]) == cli.EXIT_OK
     same = same_table(rows(folder / "cut"), rows(folder / "whole")) if comm.rank == 0 else None

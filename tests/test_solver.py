@@ -13,7 +13,10 @@ from mpi4py import MPI
 
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
-from signorini_cli import cli, contact, solver, strategies, study
+from signorini_cli import studies
+from signorini_cli.app import cli
+from signorini_cli.problems import contact
+from signorini_cli.solve import solver, strategies
 from conftest import BASE, merge
 
 NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature point with x < 0.5
@@ -23,7 +26,7 @@ INF_DATA = {"exact": None, "f": "exp(1000*x)"}  # overflows to Inf for x > 0.71
 @pytest.mark.parametrize("problem", [pytest.param(NAN_DATA, id="nan"), pytest.param(INF_DATA, id="inf")])
 @pytest.mark.parametrize("on_failure, levels", [("continue", 2), ("stop", 1)])
 def test_nonfinite_data_fails_levels(make_config, problem, on_failure, levels):
-    done = study.run_study(make_config(problem=problem, solver={"on_failure": on_failure}))
+    done = studies.run_study(make_config(problem=problem, solver={"on_failure": on_failure}))
     assert len(done) == levels
     assert all(not lv.outcome.converged and lv.outcome.reason == "DIVERGED_FNORM_NAN" for lv in done)
 
@@ -42,7 +45,7 @@ def patch_after(monkeypatch, name, calls, spoil):
 
 def test_inf_residual_mid_newton(make_config, monkeypatch):
     patch_after(monkeypatch, "_residual", 3, lambda x, F: F.set(float("inf")))
-    (level, _) = study.run_study(make_config())
+    (level, _) = studies.run_study(make_config())
     assert level.outcome.reason == "DIVERGED_FNORM_NAN" and level.outcome.newton_its >= 1
 
 
@@ -50,14 +53,14 @@ def test_nan_solution_with_finite_residual(make_config, monkeypatch):
     def spoil(x, F):
         x.array[0] = float("nan")  # the iterate itself, which the residual norm does not see
     patch_after(monkeypatch, "_residual", 3, spoil)
-    (level, _) = study.run_study(make_config())
+    (level, _) = studies.run_study(make_config())
     assert not level.outcome.converged and level.outcome.reason == "DIVERGED_FNORM_NAN"
 
 
 @pytest.mark.parametrize("linear", ["direct", "iterative"])
 def test_nan_jacobian_fails_the_linear_solve(make_config, monkeypatch, linear):
     patch_after(monkeypatch, "_jacobian", 2, lambda x, J, P: J.scale(float("nan")))
-    (level, _) = study.run_study(make_config(solver={"linear": linear}))
+    (level, _) = studies.run_study(make_config(solver={"linear": linear}))
     assert not level.outcome.converged and level.outcome.reason == "DIVERGED_LINEAR_SOLVE"
 
 
@@ -117,7 +120,7 @@ def test_success_not_fooled_by_damped_steps(make_config):
     # pinned to the degree-6 rule these numbers were measured with: the trajectory is what is tested
     cfg = make_config(alpha=1.0, epsilon={"law": "constant", "theta": 1e-8}, mesh={"refinements": [128]},
                       solver={"strategy": "plain"}, contact_quadrature=6)
-    (level,) = study.run_study(cfg, comm=MPI.COMM_SELF)
+    (level,) = studies.run_study(cfg, comm=MPI.COMM_SELF)
     assert level.outcome.converged and level.errors["L2"] == pytest.approx(1.0157e-4, rel=1e-3)
 
 
@@ -218,8 +221,8 @@ def test_polish_at_most_polish_steps():
 
 def check_polish_steps(comm, make_config):
     # α = 2, ε = h (the demo), N = 4, 8, 16, against polish = 0, which stops at the success test
-    polished = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}), comm=comm)
-    plain = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}, solver={"polish": 0}), comm=comm)
+    polished = studies.run_study(make_config(mesh={"refinements": [4, 8, 16]}), comm=comm)
+    plain = studies.run_study(make_config(mesh={"refinements": [4, 8, 16]}, solver={"polish": 0}), comm=comm)
     assert all(lv.outcome.converged and lv.outcome.correction is not None for lv in polished + plain)
     # at most solver.polish (3) Newton steps per level, none where the success test passed late enough
     # (observed 1, 1, 1)
@@ -286,7 +289,7 @@ def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
         return original(solver_cfg, problem, previous, monitor, phases)
 
     monkeypatch.setattr(strategies, "solve", spy)
-    study.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
+    studies.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
     return seen[-1]
 
 
@@ -385,7 +388,7 @@ def test_default_settings_give_the_exactly_integrated_p1_solution(make_config):
     # issue 17: 2-D, u_ex = sin(2 pi x)(1-y)^2, alpha = 1, eps = 1e-8, exact positive part, the contact term
     # integrated exactly: L2 = 5.800452e-3 (N = 16) and 4.055548e-4 (N = 64) from scikit-fem and NGSolve
     # (agreeing to 5e-12); 1e-6 relative is the issue's requirement (the figures' 7 digits)
-    levels = study.run_study(make_config(**FIGURE), comm=MPI.COMM_SELF)
+    levels = studies.run_study(make_config(**FIGURE), comm=MPI.COMM_SELF)
     assert all(level.outcome.converged for level in levels)
     assert levels[0].errors["L2"] == pytest.approx(5.800452e-3, rel=1e-6)
     assert levels[1].errors["L2"] == pytest.approx(4.055548e-4, rel=1e-6)

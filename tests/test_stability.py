@@ -2,13 +2,15 @@
 import pytest
 from mpi4py import MPI
 
-from signorini_cli import results, stability, study
+from signorini_cli import studies
+from signorini_cli.record import results
+from signorini_cli.studies import stability
 
 
 def condition(make_config, eps):
     cfg = make_config(epsilon={"law": "constant", "theta": eps}, mesh={"refinements": [8, 16]},
                       solver={"condition_max_dofs": 100})
-    return study.run_study(cfg, comm=MPI.COMM_SELF)
+    return studies.run_study(cfg, comm=MPI.COMM_SELF)
 
 
 def test_condition_grows_like_inverse_eps(make_config):
@@ -22,7 +24,7 @@ def test_condition_grows_like_inverse_eps(make_config):
 
 def test_stability_columns_follow_the_config(make_config):
     def columns(**solver):
-        rows = results.table(study.run_study(make_config(solver=solver), comm=MPI.COMM_SELF))
+        rows = results.table(studies.run_study(make_config(solver=solver), comm=MPI.COMM_SELF))
         return rows, [c for c in rows[0] if c in stability.SOLVER_COLUMNS]
 
     # 2-D direct solve, no continuation, no condition asked for
@@ -35,6 +37,6 @@ def test_stability_columns_follow_the_config(make_config):
 
 
 def test_penetration_without_the_verification_measure(make_config):
-    levels = study.run_study(make_config(verification={"measures": ["L2_gc"]}), comm=MPI.COMM_SELF)
+    levels = studies.run_study(make_config(verification={"measures": ["L2_gc"]}), comm=MPI.COMM_SELF)
     # u_ex = sin(2 pi x)(1-y)^2 is 1 at (1/4, 0); eps = h adds little: observed 1.03 at N=8 (docs/stability.md)
     assert 1.0 <= levels[-1].extra["penetration"] <= 1.1

@@ -8,7 +8,9 @@ import pytest
 import yaml
 from mpi4py import MPI
 
-from signorini_cli import cli, config, expressions, study
+from signorini_cli import config, studies
+from signorini_cli.app import cli
+from signorini_cli.config import expressions
 from conftest import BASE, merge
 
 # P1 functions are their own finite element solution (f = 0, g = eps d_n u + u^2 exact in quadrature);
@@ -23,7 +25,7 @@ STIFF = {"alpha": 1.0, "epsilon": {"law": "constant", "theta": 1e-8}}
 
 
 def check_nested_starts_at_solution(comm, make_config):
-    levels = study.run_study(make_config(**P1_EXACT), comm=comm)
+    levels = studies.run_study(make_config(**P1_EXACT), comm=comm)
     assert all(lv.outcome.converged for lv in levels)
     assert levels[0].outcome.newton_its > 0
     # the transferred coarse solution is the fine solution (nested P1, exact transfer): the residual test
@@ -46,7 +48,7 @@ def test_nested_starts_at_solution_two_ranks(make_config):
 
 def test_plain_needs_more_newton_than_nested(make_config):
     solvers = {strategy: {"stol": 0, "polish": 0, "strategy": strategy} for strategy in ("plain", "nested")}
-    runs = {strategy: study.run_study(make_config(**dict(P1_EXACT, solver=solvers[strategy])),
+    runs = {strategy: studies.run_study(make_config(**dict(P1_EXACT, solver=solvers[strategy])),
                                       comm=MPI.COMM_SELF) for strategy in ("plain", "nested")}
     assert all(lv.outcome.converged for levels in runs.values() for lv in levels)
     # level 0 has no previous level: both start from zero and do the same Newton steps
@@ -59,11 +61,11 @@ def test_plain_needs_more_newton_than_nested(make_config):
 
 def test_auto_converges_where_plain_fails(make_config):
     cfg = make_config(**STIFF, mesh={"refinements": [64]})
-    (plain,) = study.run_study(make_config(**STIFF, mesh={"refinements": [64]}, solver={"strategy": "plain"}),
+    (plain,) = studies.run_study(make_config(**STIFF, mesh={"refinements": [64]}, solver={"strategy": "plain"}),
                                comm=MPI.COMM_SELF)
     # plain Newton stalls (DIVERGED_LINE_SEARCH) or wanders (DIVERGED_MAX_IT), by round-off in the 1/eps terms
     assert not plain.outcome.converged and plain.outcome.reason in ("DIVERGED_LINE_SEARCH", "DIVERGED_MAX_IT")
-    (auto,) = study.run_study(cfg, comm=MPI.COMM_SELF)
+    (auto,) = studies.run_study(cfg, comm=MPI.COMM_SELF)
     assert auto.outcome.converged and auto.extra["continuation_steps"] >= 1
     # the solution, not a stalled iterate: L2 4.056e-4 on N = 64 is the trend of its neighbours
     # (1.616e-3 at N = 32, 1.016e-4 at N = 128, rate 2.0 in docs/stability.md)
@@ -92,7 +94,7 @@ def test_iterative_failure_falls_back_to_direct(make_config):
     # 2 CG iterations are too few for N >= 8 (81 dofs): KSP DIVERGED_ITS, SNES DIVERGED_LINEAR_SOLVE
     cfg = make_config(solver={"linear": "iterative", "petsc_options": {"ksp_max_it": 2}},
                       mesh={"refinements": [8, 16]})
-    levels = study.run_study(cfg, comm=MPI.COMM_SELF)
+    levels = studies.run_study(cfg, comm=MPI.COMM_SELF)
     assert all(lv.outcome.converged and lv.outcome.linear_fallback for lv in levels)
     assert all(lv.extra["linear_fallback"] is True for lv in levels)
     assert [s[2] for s in levels[0].outcome.steps][0] == "DIVERGED_LINEAR_SOLVE"
@@ -102,6 +104,6 @@ def test_nan_is_reported_not_converged(make_config):
     # delta = 0 makes d/du sqrt(u^2) = u/|u| = 0/0 at u = 0: the Jacobian of the first step is NaN
     # (config refuses delta = 0: the smoothing is set past validation to reach the solver's NaN test)
     cfg = dataclasses.replace(make_config(), positive_part=config.PositivePart("smooth", expressions.parse("0", ())))
-    levels = study.run_study(cfg, comm=MPI.COMM_SELF)
+    levels = studies.run_study(cfg, comm=MPI.COMM_SELF)
     assert [lv.outcome.reason for lv in levels] == ["DIVERGED_FNORM_NAN"] * 2
     assert not any(lv.outcome.converged for lv in levels)

@@ -5,11 +5,13 @@ import weakref
 import numpy as np
 import pytest
 
-from signorini_cli import results, solver, strategies, study, transfer
+from signorini_cli import studies
+from signorini_cli.record import results
+from signorini_cli.solve import solver, strategies, transfer
 
 
 def last_rates(cfg):
-    rows = results.table(study.run_study(cfg))
+    rows = results.table(studies.run_study(cfg))
     assert all(row["converged"] for row in rows)
     return rows[-1]["rate_H1"], rows[-1]["rate_L2"]
 
@@ -31,7 +33,7 @@ def test_rates_3d_alpha2_theta_h(make_config):
 
 
 def test_demo_level_matches_independent_value(make_config):
-    (level,) = study.run_study(make_config(mesh={"refinements": [64]}))
+    (level,) = studies.run_study(make_config(mesh={"refinements": [64]}))
     # issue 3: an independent implementation of the same discretisation gives L2 ≈ 4.044e-4 and
     # H1 seminorm ≈ 7.315e-2 at N = 64; 4 significant digits = half a unit in the 4th digit
     assert level.errors["L2"] == pytest.approx(4.044e-4, abs=0.0005e-4)
@@ -42,13 +44,13 @@ def test_demo_level_matches_independent_value(make_config):
 
 def test_data_only_scene_has_no_error_columns(make_config):
     cfg = make_config(problem={"exact": None, "f": "-10"})
-    rows = results.table(study.run_study(cfg))
+    rows = results.table(studies.run_study(cfg))
     assert all(row["converged"] for row in rows)
     assert not {"L2", "H1", "rate_L2", "rate_H1"} & set(rows[0])
 
 
 def test_stop_on_failure_ends_study(make_config):
-    levels = study.run_study(make_config(solver={"max_it": 1, "on_failure": "stop"}))
+    levels = studies.run_study(make_config(solver={"max_it": 1, "on_failure": "stop"}))
     assert len(levels) == 1 and not levels[0].outcome.converged
     assert levels[0].outcome.reason == "DIVERGED_MAX_IT"
 
@@ -67,7 +69,7 @@ def test_finer_level_solves_without_the_coarser_mesh(make_config, monkeypatch):
         return original(newton)
 
     monkeypatch.setattr(solver.NewtonSolver, "solve", solve)
-    levels = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}))
+    levels = studies.run_study(make_config(mesh={"refinements": [4, 8, 16]}))
     assert all(lv.outcome.converged for lv in levels)
     assert alive_at_solve == [[], [False], [False, False]]
 
@@ -93,7 +95,7 @@ def test_failed_level_hands_on_the_last_converged_solution(make_config, monkeypa
     run_original = strategies.Newton.run
     monkeypatch.setattr(strategies, "initial_guess", initial_guess)
     monkeypatch.setattr(strategies.Newton, "run", run)
-    levels = study.run_study(make_config(mesh={"refinements": [4, 8, 16]}, solver={"strategy": "nested"}))
+    levels = studies.run_study(make_config(mesh={"refinements": [4, 8, 16]}, solver={"strategy": "nested"}))
     assert [lv.outcome.converged for lv in levels] == [True, False, True]
     expected = transfer.transfer(first[25], guesses[289].function_space)  # level 1 (N = 4) moved onto N = 16
     assert np.allclose(guesses[289].x.array, expected.x.array, rtol=0, atol=1e-14)

@@ -5,7 +5,11 @@ import time
 import pytest
 from mpi4py import MPI
 
-from signorini_cli import cli, rates, results, study, timing
+from signorini_cli import studies
+from signorini_cli.analysis import rates
+from signorini_cli.app import cli
+from signorini_cli.record import results
+from signorini_cli.system import timing
 from conftest import merge
 
 CUBE = {"dimension": 3, "mesh": {"kind": "unit_cube"}, "problem": {"exact": "sin(2*pi*x)*sin(pi*y)*(1-z)**2"}}
@@ -31,7 +35,7 @@ def test_phases_accumulate_and_take_the_slowest_rank():
 @pytest.mark.parametrize("scene", list(SCENES))
 def test_errors_of_the_fast_paths_equal_the_plain_path(scene, make_config):
     changes, refinements = SCENES[scene]
-    runs = [study.run_study(make_config(**merge(merge(changes, extra), {"mesh": {"refinements": refinements}})),
+    runs = [studies.run_study(make_config(**merge(merge(changes, extra), {"mesh": {"refinements": refinements}})),
                             comm=MPI.COMM_SELF) for extra in ({}, PLAIN)]
     fast, plain = ([lv.errors[norm] for norm in ("L2", "H1") for lv in levels] for levels in runs)
     # both solve one discrete problem, each polished to a predicted algebraic error <= 1e-13 ||u_h||
@@ -41,7 +45,7 @@ def test_errors_of_the_fast_paths_equal_the_plain_path(scene, make_config):
 
 def test_phase_columns_split_the_level_time(tmp_path, make_config):
     cfg = make_config(mesh={"refinements": [8, 16, 32]}, solver={"linear_floor": True})
-    levels = study.run_study(cfg, on_level=lambda done: results.write(cfg, done), comm=MPI.COMM_SELF)
+    levels = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done), comm=MPI.COMM_SELF)
     rows = results.table(levels)
     for row in rows:
         # the level's own phases split time_s; t_output (the record written after time_s was taken) apart
@@ -76,5 +80,5 @@ def test_work_precision_csv_has_every_norm_and_level(tmp_path, make_config):
 
 
 def test_no_floor_columns_unless_asked(make_config):
-    (level,) = study.run_study(make_config(mesh={"refinements": [4]}), comm=MPI.COMM_SELF)
+    (level,) = studies.run_study(make_config(mesh={"refinements": [4]}), comm=MPI.COMM_SELF)
     assert "t_linear_floor" not in level.timings and "floor_ratio" not in level.timings

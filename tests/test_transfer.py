@@ -5,8 +5,8 @@ import ufl
 from mpi4py import MPI
 
 from dolfinx import fem, mesh
-from signorini_cli import grids
-from signorini_cli.transfer import evaluate, evaluate_routed, kuhn_grid, kuhn_transfer, needed_layers, transfer
+from signorini_cli.meshing import grids
+from signorini_cli.solve.transfer import evaluate, evaluate_routed, kuhn_grid, kuhn_transfer, needed_layers, transfer
 
 MESHES = [
     pytest.param(lambda comm, n: mesh.create_unit_square(comm, n, n), id="2d"),

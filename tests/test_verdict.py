@@ -6,9 +6,10 @@ import math
 import h5py
 import pytest
 
-from signorini_cli import results, verdict
-from signorini_cli.solver import Outcome
-from signorini_cli.study import Level
+from signorini_cli.analysis import verdict
+from signorini_cli.record import results
+from signorini_cli.solve.solver import Outcome
+from signorini_cli.studies import Level
 
 H = [0.2, 0.1, 0.05, 0.025]
 

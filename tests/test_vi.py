@@ -4,7 +4,11 @@ import pytest
 from mpi4py import MPI
 
 from dolfinx import fem
-from signorini_cli import meshes, model, results, study, verdict, vi
+from signorini_cli import studies
+from signorini_cli.analysis import verdict
+from signorini_cli.meshing import meshes
+from signorini_cli.problems import compliance, vi
+from signorini_cli.record import results
 from conftest import U_SIGNORINI
 
 RTOL = 1e-8  # issue 10: the VI under mpirun -n 2 reproduces the serial errors to 1e-8 relative
@@ -24,7 +28,7 @@ def solved(cfg, n, comm):
     domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
     u_h = fem.Function(V)
-    bc = model.dirichlet_condition(V, domain, model.exact_solution(cfg, domain.mesh, None))
+    bc = compliance.dirichlet_condition(V, domain, compliance.exact_solution(cfg, domain.mesh, None))
     outcome, forms_ = vi.solve(cfg, domain, u_h, bc)
     assert outcome.converged
     return domain, u_h, bc, forms_
@@ -58,7 +62,7 @@ def test_bounds_respected_at_gamma_c_nodes_two_ranks(signorini_config):
 
 def test_rates_manufactured_signorini(signorini_config):
     cfg = signorini_config(mesh={"refinements": [8, 16, 32]})
-    levels = study.run_study(cfg)
+    levels = studies.run_study(cfg)
     rows = results.table(levels)
     assert all(row["converged"] and row["epsilon"] == 0.0 for row in rows)
     # the paper's table bounds u_eps − u_eps,h: nothing it proves applies to the VI's errors
@@ -82,7 +86,7 @@ def test_two_ranks_match_one(signorini_config):
     comm = MPI.COMM_WORLD
     assert comm.size == 2
     cfg = signorini_config(mesh={"refinements": [8, 16]})
-    parallel, serial = study.run_study(cfg, comm=comm), study.run_study(cfg, comm=MPI.COMM_SELF)
+    parallel, serial = studies.run_study(cfg, comm=comm), studies.run_study(cfg, comm=MPI.COMM_SELF)
     for p, s in zip(parallel, serial):
         assert p.outcome.converged and s.outcome.converged and p.dofs == s.dofs
         for norm in ("L2", "H1"):

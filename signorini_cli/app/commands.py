@@ -1,0 +1,306 @@
+"""The commands: run (a study of any type), check (resolved config), init (the commented template), list
+(shipped configs), report and compare; their exit statuses and the one-line error of bad input."""
+import dataclasses
+import logging
+import os
+import sys
+from pathlib import Path
+
+import yaml
+from mpi4py import MPI
+
+from .. import config, studies
+from ..analysis import verdict
+from ..config import ConfigError
+from ..meshing import geometries
+from ..record import results, resume
+from ..report import plots, progress, tables
+from ..solve import solver
+from . import guard, resources
+
+logger = logging.getLogger(__name__)
+
+EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
+EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
+
+SHIPPED_CONFIGS = Path(__file__).resolve().parents[2] / "configs"
+
+
+class _FlowListDumper(yaml.SafeDumper):
+    """Block mappings, but lists on one line: `refinements: [8, 16, 32]`."""
+
+
+_FlowListDumper.add_representer(
+    list, lambda dumper, data: dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True))
+
+
+def check(args):
+    """Validate CONFIG (with --set/--output) and print its resolved settings as YAML, no solve."""
+    try:
+        cfg = _load(args)
+    except (ConfigError, yaml.YAMLError, OSError) as err:
+        return fail(args.config, err)
+    if MPI.COMM_WORLD.rank == 0:  # no dolfinx/PETSc import: check stays instant (and `| head` safe)
+        emit([f"# {args.config}: valid. Resolved settings, every default filled in:",
+              yaml.dump(config.to_dict(cfg), Dumper=_FlowListDumper, sort_keys=False, allow_unicode=True).rstrip("\n"),
+              f"# results would go to {cfg.output_dir}/"])
+    return EXIT_OK
+
+
+def list_configs(args):
+    """Every configs/**/*.yaml as a path to give `run`, with its one-line description (or why it does
+    not load)."""
+    folder = Path(args.folder) if args.folder else shipped_configs()
+    if not folder.is_dir():
+        return fail(str(folder), OSError("not a folder of configs"))
+    paths = [_shown_path(path) for path in sorted(folder.glob("**/*.yaml"))]
+    width = max(map(len, paths), default=0)
+    if MPI.COMM_WORLD.rank == 0:
+        emit(f"{path:<{width}}  {_description(path)}" for path in paths)
+    return EXIT_OK
+
+
+def _shown_path(path):
+    """The path relative to the working folder when it lies below it, else absolute."""
+    relative = os.path.relpath(path.resolve())
+    return relative if not relative.startswith("..") else str(path.resolve())
+
+
+def emit(lines):
+    """Print the lines to stdout; a reader that stops early (`| head -1`) ends the output quietly: the
+    work is done, the rest of stdout goes to /dev/null (no BrokenPipeError at exit)."""
+    with guard.stdout_may_close():
+        for line in lines:
+            print(line)
+
+
+def shipped_configs():
+    """configs/ of this checkout, else of the current folder."""
+    return SHIPPED_CONFIGS if SHIPPED_CONFIGS.is_dir() else Path("configs")
+
+
+def _description(path):
+    try:
+        return config.load(path).description or "(no description)"
+    except (ConfigError, yaml.YAMLError, OSError) as err:
+        return f"(invalid: {str(err).splitlines()[0]})"
+
+
+def report_study(args):
+    """Tables and plots of a finished or partial study from its study.h5 or rates.csv."""
+    try:
+        study = tables.load(args.path)
+        cfg = study_config(study)
+        digits = args.digits if args.digits is not None else (cfg.output.digits if cfg is not None else 3)
+        if digits < 1:
+            raise ConfigError("--digits", f"must be >= 1, got {digits}")
+        columns = config.table_columns(args.columns, "--columns") if args.columns else None
+        figure = {"width": config.length(args.width, "--width") if args.width else None,
+                  "per_norm": args.per_norm}
+        written = []
+        if MPI.COMM_WORLD.rank == 0:
+            written = tables.write(study, cfg, digits, plots=not args.no_plots, folder=args.output,
+                                   columns=columns, figure=figure)
+            table = tables.format_table(study.rows, cfg, columns)
+    except (ConfigError, OSError) as err:
+        return fail(args.path, err)
+    if MPI.COMM_WORLD.rank == 0:
+        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
+              f"wrote into {Path(args.output or study.folder)}: " + ", ".join(p.name for p in written)])
+    return EXIT_OK
+
+
+def study_config(study):
+    """The study's config from its record (resolved when recorded), or None (rates.csv, older schema)."""
+    if not study.config_text:
+        return None
+    try:
+        return config.loads(study.config_text)
+    except (ConfigError, yaml.YAMLError):
+        return None
+
+
+def _levels_done(study, cfg):
+    done = len(study.rows)
+    if cfg is None or done >= len(cfg.mesh.levels):
+        return f"{done} level{'s' if done != 1 else ''}"
+    return f"{done} of {len(cfg.mesh.levels)} levels (partial study)"
+
+
+def compare(args):
+    """Overlay several studies: error vs h and vs time per norm, Newton iterations; a summary table."""
+    try:
+        studies = [_load_one(path) for path in args.paths]
+    except _BadStudy as err:  # name the one folder that does not load
+        return fail(err.path, err.cause)
+    try:
+        if args.label and len(args.label) != len(studies):
+            raise ConfigError("--label", f"give one per study: {len(studies)} studies, {len(args.label)} labels")
+        labels = args.label or _labels(studies)
+        folder = Path(args.output) if args.output else studies[0].folder.parent / "compare"
+        rows = dict(zip(labels, (study.rows for study in studies)))
+        written = plots.write_comparison(rows, folder) if MPI.COMM_WORLD.rank == 0 else []
+    except (ConfigError, OSError) as err:
+        return fail("compare", err)
+    if MPI.COMM_WORLD.rank == 0:
+        emit([tables.summary_table(rows), f"wrote into {folder}: " + ", ".join(p.name for p in written)])
+    return EXIT_OK
+
+
+class _BadStudy(OSError):
+    """One study of a comparison that does not load: its path and why."""
+
+    def __init__(self, path, cause):
+        super().__init__(str(cause))
+        self.path, self.cause = path, cause
+
+
+def _load_one(path):
+    try:
+        return tables.load(path)
+    except (ConfigError, OSError) as err:
+        raise _BadStudy(path, err) from None
+
+
+def _labels(studies):
+    """Study names, made unique with their folders where two studies share a name."""
+    names = [study.name for study in studies]
+    return [name if names.count(name) == 1 else f"{name} ({study.folder})" for name, study in zip(names, studies)]
+
+
+
+
+def _run_command(args):
+    try:
+        cfg = _load(args)
+        lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD)  # writable, and no other run writes it
+    except (ConfigError, yaml.YAMLError, OSError) as err:
+        return fail(args.config, err)
+    with lock:
+        try:
+            _check_output(cfg, args.force or args.resume)
+            done = _prepare(cfg, args)
+        except (ConfigError, yaml.YAMLError, OSError) as err:
+            return fail(args.config, err)
+        return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+
+
+def run(cfg, quiet=False, verbose=False, done=()):
+    """Run the study (after the levels `done`), writing results and status after each solve, with
+    progress, the table(s), the verdict, tables and plots on rank 0 (any study type); status.txt says
+    complete once the plots are written."""
+    solver.forget_read_options()  # _warn_unused_options: this run's solves only
+    comm = MPI.COMM_WORLD
+    run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
+    levels_study = cfg.study_type in results.LEVEL_STUDIES
+    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet and levels_study)
+    shown.level = len(done)  # a resumed study starts further on
+    if done and comm.rank == 0 and not quiet:
+        with guard.stdout_may_close():
+            print(f"study {cfg.study}: resuming after level {done[-1].index}")
+
+    def on_level(result):
+        shown.level_done(watch.level_done(result))
+        solved = len(list(result))
+        if solved == len(done) + 1 and comm.rank == 0:  # the run's first solve: its options were read
+            _warn_unused_options(solver.unused_options([name for name, _ in cfg.solver.petsc_options]),
+                                 solved - 1)
+
+    with guard.Watch(cfg, done, comm) as watch:
+        result = studies.run_study(run_cfg, on_level=on_level, comm=comm,
+                                 monitor=None if verbose or quiet else shown.monitor, done=done)
+        summary = verdict.summarize(cfg, result) if levels_study else None
+        text = watch.finish(lambda: _outputs(cfg, result, summary))
+    if comm.rank == 0 and not quiet:
+        with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
+            print(text)
+    if summary is not None and not summary.met:  # the user's `expect:` block: batch runs gate on it
+        return EXIT_EXPECTATION_NOT_MET
+    return EXIT_OK if all(solve.outcome.converged for solve in result) else EXIT_NOT_CONVERGED
+
+
+def _outputs(cfg, result, summary):
+    """Write the study's tables and plots (rank 0) and return what the terminal shows."""
+    if summary is None:
+        named = results.limit_tables(cfg, result)
+        return tables.limit_summary(cfg, named, tables.write_limit(cfg, result, named))
+    rows = results.table(result)
+    written = tables.write(tables.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
+                           plots=cfg.output.plots)
+    header = f"study {cfg.study}: {cfg.output_dir} (contact term: contact_quadrature {cfg.contact_quadrature})"
+    return "\n".join([header, tables.format_table(rows, cfg),
+                      verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
+
+
+def _warn_unused_options(unused, level):
+    """Name the user's PETSc options that level `level`'s solves did not read (misspelt, or for
+    an object the study does not create): PETSc itself ignores them in silence."""
+    if unused:
+        logger.warning("solver.petsc_options: %s not used by PETSc in level %d (misspelt, or not an option "
+                       "of the solver and preconditioner in use)", ", ".join(unused), level)
+
+
+def with_monitors(cfg):
+    """cfg with PETSc's SNES/KSP monitors switched on (--verbose); the user's own options win."""
+    monitors = (("snes_monitor", ""), ("snes_converged_reason", ""), ("ksp_converged_reason", ""))
+    solver = dataclasses.replace(cfg.solver, petsc_options=monitors + cfg.solver.petsc_options)
+    return dataclasses.replace(cfg, solver=solver)
+
+
+def _load(args):
+    overrides = list(args.set) + ([f"output.dir={args.output}"] if args.output else [])
+    return config.load(args.config, overrides, getattr(args, "petsc_options", ()))
+
+
+def init(args):
+    """Print (or write to FILE) the commented config of every key with its default."""
+    text = config.template()
+    if args.file is None:
+        if MPI.COMM_WORLD.rank == 0:
+            print(text, end="")
+        return EXIT_OK
+    if Path(args.file).exists() and not args.force:
+        return fail(args.file, ConfigError("", "already exists; use --force to overwrite it"))
+    try:
+        if MPI.COMM_WORLD.rank == 0:
+            Path(args.file).write_text(text)
+    except OSError as err:
+        return fail(args.file, err)
+    return EXIT_OK
+
+
+def _prepare(cfg, args):
+    """The finished levels to continue from (--resume), once the finest level fits in memory."""
+    if not args.force:
+        resources.check_memory(cfg, MPI.COMM_WORLD)
+    if cfg.mesh.kind == "gmsh":  # what gmsh cannot mesh is bad input, found before any level runs
+        list(geometries.mesh_levels(cfg, MPI.COMM_WORLD))
+    if args.resume and cfg.study_type != "refinement":
+        raise ConfigError("--resume", f"study_type {cfg.study_type} runs from the start; use --force")
+    return resume.finished_levels(cfg, MPI.COMM_WORLD) if args.resume else []
+
+
+def _check_output(cfg, force):
+    if any((cfg.output_dir / name).exists() for name in ("rates.csv", "study.h5")) and not force:
+        raise ConfigError("output.dir", f"{cfg.output_dir} already holds results; use --resume to continue "
+                                        "them or --force to overwrite")  # study.h5: also studies without rates.csv
+
+
+def fail(source, err):
+    if MPI.COMM_WORLD.rank == 0:
+        message = _yaml_message(err) if isinstance(err, yaml.YAMLError) else str(err)
+        message = " ".join(message.split("\n"))  # one line, always
+        print(f"signorini: error: {source}: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def _yaml_message(err):
+    mark = getattr(err, "problem_mark", None)
+    where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
+    context, start = getattr(err, "context", None), getattr(err, "context_mark", None)
+    # PyYAML notices an unclosed bracket or quote where the next token is; say where it was opened
+    opened = f" ({context} at line {start.line + 1}, column {start.column + 1})" if context and start else ""
+    return f"YAML syntax error: {where}{getattr(err, 'problem', None) or err}{opened}"
+
+
+COMMANDS = {"run": _run_command, "check": check, "list": list_configs, "report": report_study, "compare": compare}

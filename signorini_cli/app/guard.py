@@ -1,0 +1,353 @@
+"""Faults around a study: SIGINT/SIGTERM end it cleanly, an exception on one rank ends every rank,
+a study folder is written by one run at a time, a closed stdout ends output quietly, and the study's
+status is kept on disk next to its results."""
+import errno
+import fcntl
+import logging
+import os
+import signal
+import sys
+import time
+import traceback
+from contextlib import contextmanager
+from pathlib import Path
+
+from mpi4py import MPI
+
+from ..config import ConfigError
+from ..record import results
+from ..system import files
+
+logger = logging.getLogger(__name__)
+
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# A rank other than 0 waits this long before it reports a fault: when rank 0 has the same fault it
+# reports it alone (its MPI abort ends the others first). Below Open MPI's 1 s between the SIGTERM
+# mpirun forwards on Ctrl-C and its SIGKILL.
+GRACE_S = 0.5
+# Testing hook, documented in README: SIGNORINI_TEST_FAIL=RANK:LEVEL makes that rank raise as that
+# level starts, like a crash inside a level (tests/test_guard.py: one rank of two fails).
+TEST_FAIL = "SIGNORINI_TEST_FAIL"
+CRASH_STATUS = 3  # a bug (an exception that is no bad input): its traceback is printed, the status kept
+BAD_SURROUNDINGS = 2  # as bad input: the results could not be written (a full disk, a folder gone read-only)
+
+
+class Interrupted(BaseException):
+    """SIGINT or SIGTERM arrived. A BaseException, as KeyboardInterrupt: `except Exception` lets it by."""
+
+    def __init__(self, signum):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.note = ""  # where the study stood, added by Watch
+
+    @property
+    def exit_status(self):
+        return 128 + self.signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
+
+
+class WriteFailed(Exception):
+    """The study's files could not be written (OSError): the surroundings, not a bug. One line, exit 2."""
+
+    def __init__(self, folder, err):
+        super().__init__(f"{folder}: cannot write the results: {err.strerror or err}")
+        self.reason = err.strerror or str(err)
+        self.note = ""  # where the study stood, added by Watch
+
+
+class _Signals:
+    """The handler: raise Interrupted, or hold the signal back while results are being written."""
+
+    def __init__(self):
+        self.holding, self.pending = 0, None
+
+    def handle(self, signum, frame):
+        if self.holding:
+            self.pending = signum
+        else:
+            raise Interrupted(signum)
+
+
+_signals = _Signals()
+
+
+@contextmanager
+def interruptible():
+    """Within: SIGINT and SIGTERM raise Interrupted (between Python statements, so also inside
+    PETSc's callbacks); the previous handlers are restored after."""
+    try:
+        previous = {sig: signal.signal(sig, _signals.handle) for sig in SIGNALS}
+    except ValueError:  # not the main thread: signals stay as they are
+        previous = {}
+    try:
+        yield
+    finally:
+        with deferred(drop=True):  # a signal now would escape as a traceback
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+
+@contextmanager
+def deferred(drop=False):
+    """Within: a signal waits until the block is done, then raises (a level is written whole);
+    drop=True forgets it instead (the study is already ending)."""
+    _signals.holding += 1
+    try:
+        yield
+    finally:  # with an exception on its way out, a held signal is dropped: the study is ending anyway
+        _signals.holding -= 1
+        signum = None if _signals.holding else _signals.pending
+        _signals.pending = _signals.pending if _signals.holding else None
+    if signum is not None and not drop:
+        raise Interrupted(signum)
+
+
+def supervise(body):
+    """body() -> exit status, with SIGINT/SIGTERM as Interrupted. An interruption prints one line and
+    gives 128 + signal. On several ranks any fault ends every rank (MPI abort) instead of leaving the
+    others waiting in a collective; a bug's traceback is printed once."""
+    comm = MPI.COMM_WORLD
+    with interruptible():
+        try:
+            return body()
+        except Interrupted as sig:
+            settle(sig, comm)
+            if comm.rank == 0:  # mpirun passes Ctrl-C on to every rank: one line, not one per rank
+                print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
+            _abort_if_parallel(comm, sig.exit_status)
+            return sig.exit_status
+        except WriteFailed as err:  # raised on rank 0 alone, the writer: it speaks and ends the others
+            print(f"signorini: error: {err}{err.note}", file=sys.stderr)
+            _abort_if_parallel(comm, BAD_SURROUNDINGS)
+            return BAD_SURROUNDINGS
+        except Exception as err:
+            if comm.size > 1:
+                settle(err, comm)
+                traceback.print_exc()
+                print(f"signorini: rank {comm.rank} failed: {_first_line(err)}; aborting all {comm.size} ranks",
+                      file=sys.stderr)
+                _abort_if_parallel(comm, CRASH_STATUS)
+            raise
+
+
+def settle(err, comm):
+    """Wait GRACE_S on ranks other than 0, once per fault (see GRACE_S)."""
+    if comm.rank != 0 and not getattr(err, "signorini_settled", False):
+        time.sleep(GRACE_S)
+    err.signorini_settled = True
+
+
+def _abort_if_parallel(comm, status):
+    if comm.size > 1:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        comm.Abort(status)
+
+
+def _first_line(err):
+    text = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {text[0]}" if text else type(err).__name__
+
+
+def status(cfg, result, final=True):
+    """'complete'; 'failed at level k: REASON' when a level did not converge and on_failure is stop;
+    else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels), also with every
+    level done while tables and figures are still being written (final=False)."""
+    solves = list(result)
+    unit = "levels" if cfg.study_type in results.LEVEL_STUDIES else "solves"
+    last = solves[-1] if solves else None
+    if unit == "levels" and last and not last.outcome.converged and cfg.solver.on_failure == "stop":
+        return f"failed at level {last.index}: {last.outcome.reason}"
+    if len(solves) == cfg.solves and final:
+        return "complete"
+    return f"running ({len(solves)} of {cfg.solves} {unit} done)"
+
+
+class Watch:
+    """Keeps a study's record current: rates.csv, study.h5 and status.txt at the start, after every
+    level, and when it ends: complete (once tables and figures are written too), failed at level k:
+    reason, interrupted at level k."""
+
+    def __init__(self, cfg, done, comm):
+        self.cfg, self.levels, self.comm = cfg, list(done), comm
+        self.done = self.recorded = len(done)
+
+    def __enter__(self):
+        try:
+            self.level_done(self.levels)  # a forced rerun replaces the old results at once
+        except BaseException as err:  # __exit__ is not called when __enter__ fails: record, then go on
+            self.__exit__(type(err), err, err.__traceback__)
+            raise
+        return self
+
+    def level_done(self, levels):
+        """run_study's on_level: write the results whole (signals wait), then the testing hook; the rows.
+        self.levels are the levels on disk: a level whose writing failed is not among them."""
+        with deferred():
+            start = time.perf_counter()
+            rows = results_write(self.cfg, levels, self.comm, final=False)
+            self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
+            if isinstance(self.levels, list) and len(self.levels) > self.recorded:  # the new level's t_output
+                timings = self.levels[-1].timings
+                timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
+                self.recorded = len(self.levels)
+        fault_hook(self.solved, self.comm)
+        return rows
+
+    @property
+    def solved(self):
+        """The solves recorded so far (levels; an ε-sweep's or total-error study's solves)."""
+        return len(list(self.levels))
+
+    def finish(self, draw):
+        """draw() (tables and figures, on rank 0) -> its result; status.txt says complete only after it."""
+        with writing(self.cfg.output_dir):
+            return draw() if self.comm.rank == 0 else None
+
+    def __exit__(self, kind, err, tb):
+        if err is None:
+            with deferred():  # the final status, and the last level's record with its own t_output
+                results_write(self.cfg, self.levels, self.comm)
+            return False
+        if not isinstance(err, (Exception, Interrupted)):
+            return False
+        settle(err, self.comm)
+        state = self.ending(err)
+        if isinstance(err, Interrupted):
+            err.note = self.note(state)
+        elif isinstance(err, WriteFailed):
+            err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
+        with deferred(drop=True):
+            self.record(state)
+        return False
+
+    def ending(self, err):
+        """The status a study ending with `err` leaves."""
+        if not status(self.cfg, self.levels, final=False).startswith("running"):
+            return status(self.cfg, self.levels)  # stopped by on_failure: stop before it came
+        k = self.solved
+        where = (f"at level {k}" if k < self.cfg.solves
+                 else f"while writing tables and figures (all {k} levels done)")
+        if isinstance(err, Interrupted):
+            return f"interrupted {where}"
+        return f"failed {where}: {err.reason if isinstance(err, WriteFailed) else _first_line(err)}"
+
+    def note(self, state):
+        """What the one line on stderr adds: where the study stood and how to go on."""
+        if state.startswith(("interrupted ", "failed ")):
+            where = state.split(" ", 1)[1].split(":")[0]
+            return (f" {where}: the {self.solved} finished level(s) are in {self.cfg.output_dir}; "
+                    "continue with --resume")
+        return f" as the study ended ({state}): results in {self.cfg.output_dir}"
+
+    def record(self, state):
+        """Write the results with `state` from this rank alone: the others may be gone or waiting. When
+        they cannot be written (a full disk), status.txt alone, in place."""
+        try:
+            rows = results.main_table(self.cfg, self.levels)
+            results.write_files(self.cfg, self.levels, rows, self.comm.size, state)
+        except OSError as err:
+            logger.debug("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
+            try:
+                results.write_status(self.cfg.output_dir, state)
+            except OSError as again:
+                logger.warning("could not record the status %r: %s", state, again.strerror or again)
+
+
+def results_write(cfg, levels, comm, final=True):
+    """rates.csv, study.h5 and status.txt of the levels so far (collective); the table's rows.
+    An OSError of the writer (rank 0) is a WriteFailed."""
+    with writing(cfg.output_dir):
+        return results.write(cfg, levels, comm, status=status(cfg, levels, final))
+
+
+@contextmanager
+def writing(folder):
+    """Within: an OSError is a WriteFailed naming `folder` (a full disk is no bug)."""
+    try:
+        yield
+    except OSError as err:
+        raise WriteFailed(folder, err) from err
+
+
+def fault_hook(level, comm):
+    """Testing hook: with SIGNORINI_TEST_FAIL=RANK:LEVEL set, that rank raises as that level starts."""
+    spec = os.environ.get(TEST_FAIL)
+    if spec and spec == f"{comm.rank}:{level}":
+        raise RuntimeError(f"{TEST_FAIL}={spec}: rank {comm.rank} fails at the start of level {level}")
+
+
+# --- one run per study folder --------------------------------------------------------------------
+
+class FolderLock:
+    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it. The kernel
+    drops it when the process ends, however it ends: a killed run leaves no stale lock. Folders made
+    for it are removed again on release when they stayed empty (a refused run leaves nothing)."""
+
+    def __init__(self, folder, comm):
+        self.folder, self.fd, self.made = Path(folder), None, []
+        refusal = self._acquire() if comm.rank == 0 else None
+        refusal = comm.bcast(refusal, root=0)
+        if refusal is not None:
+            raise ConfigError("output.dir", refusal)
+
+    def _acquire(self):
+        """None once the lock is held, else why not."""
+        problem = files.unwritable(self.folder)  # not a folder, read-only, ...: before anything is made
+        if problem is not None:
+            return problem
+        try:
+            self.made = [p for p in (*reversed(self.folder.parents), self.folder) if not p.exists()]
+            self.folder.mkdir(parents=True, exist_ok=True)
+            self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return None
+        except OSError as err:
+            self.release()
+            if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                return f"{self.folder} is being written by another signorini run; wait for it to end or " \
+                       "choose another output folder"
+            return f"{err.filename or self.folder}: cannot write there: {err.strerror}"
+
+    def release(self):
+        if self.fd is not None:
+            os.close(self.fd)  # closing the last descriptor drops the flock
+            self.fd = None
+        for path in reversed(self.made):
+            try:
+                path.rmdir()  # only an empty folder: a run that wrote nothing leaves nothing
+            except OSError:
+                break
+        self.made = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.release()
+        return False
+
+
+# --- a closed stdout -----------------------------------------------------------------------------
+
+def raise_on_closed_pipes():
+    """Writing to a closed pipe raises BrokenPipeError again (Python's default), instead of PETSc's
+    SIGPIPE handler, which PetscInitialize installs, ending the run with exit 59 and its banner."""
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
+@contextmanager
+def stdout_may_close():
+    """Within: printing to a closed stdout (`signorini run cfg | head -1`) stops the printing quietly,
+    the rest of the run goes on; stdout then points at /dev/null so the exit's flush finds no pipe."""
+    try:
+        yield
+        sys.stdout.flush()
+    except BrokenPipeError:
+        stdout_to_devnull()
+
+
+def stdout_to_devnull():
+    """Point stdout at /dev/null: what is still buffered for a closed pipe goes nowhere, quietly."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)

@@ -1,0 +1,1 @@
+"""The problems: their spaces, forms, contact terms, manufactured data and measures."""

@@ -1,0 +1,1 @@
+"""What a reader sees: terminal, Markdown and LaTeX tables, figures, progress lines."""

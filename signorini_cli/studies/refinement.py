@@ -1,0 +1,105 @@
+"""The refinement study: one solved and measured level per mesh of the family."""
+import time
+
+from mpi4py import MPI
+from dolfinx import fem
+
+from ..meshing import meshes
+from ..problems import compliance, measure
+from ..solve import solver, strategies
+from ..system import timing
+from . import fields, stability, verification
+from .level import Level
+
+
+def run_refinement(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+    """Solve every level of `cfg` (after the levels `done`); on_level(levels_so_far) after each."""
+    levels = list(done)
+    if done and not done[-1].outcome.converged and cfg.solver.on_failure == "stop":
+        return levels  # the study had already stopped there
+    verifier = verification.Verifier(cfg, comm)
+    previous = strategies.Handoff(resume_verifier(cfg, done, comm, verifier))
+    for index, n in enumerate(cfg.mesh.levels):
+        if index < len(done):
+            continue
+        levels.append(solve_level(cfg, index, n, comm, monitor, verifier, previous))
+        if levels[-1].outcome.converged:
+            previous = strategies.Handoff(levels[-1].solution)
+        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
+        verification.add_rates(levels)
+        if on_level is not None:
+            on_level(levels)
+        if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
+            break
+    return levels
+
+
+def resume_verifier(cfg, done, comm, verifier):
+    """A resumed study solves its finished levels again, unrecorded, for what the next level needs: the
+    last converged u_h, as the successive differences (measure `diff`) and nested iteration start from it.
+    Nested strategies solve the whole chain again (levels 0 .. last converged, each from the one before),
+    so the resumed levels start from the very same guess and give the same numbers as an uninterrupted
+    run; otherwise the last converged level alone. Returns that u_h (or None)."""
+    converged = [lv for lv in done if lv.outcome.converged]
+    nested = cfg.solver.strategy in ("nested", "auto")
+    if not converged or len(done) >= len(cfg.mesh.levels) or not (nested or "diff" in verifier.measures):
+        return None
+    chain = [lv for lv in done if lv.index <= converged[-1].index] if nested else converged[-1:]
+    previous = None
+    for lv in chain:
+        again = solve_level(cfg, lv.index, cfg.mesh.levels[lv.index], comm,
+                            verifier=verifier if lv is converged[-1] else None, previous=previous)
+        previous = again.solution if again.outcome.converged else previous
+    return previous
+
+
+def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None, previous=None):
+    """Build, solve and measure the level with n cells per side (or the level's entry of mesh.levels);
+    `previous`, the last converged level's u_h (or a strategies.Handoff of it), is the initial guess of nested
+    strategies.
+    time_s is the level's wall time from mesh to measures; the t_* columns split it (timing.PHASES)."""
+    start, phases = time.perf_counter(), timing.Phases()
+    with phases("mesh"):
+        domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
+    mesh_peak_mb = timing.peak_memory_mb(comm)
+    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
+    eps_value = cfg.epsilon(domain.h)
+    eps = fem.Constant(domain.mesh, eps_value)
+    u_h = fem.Function(V, name="u_h")
+    forms = compliance.forms(cfg, domain, u_h, eps)
+    bcs = [compliance.dirichlet_condition(V, domain, forms.u_exact)]
+    problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
+    outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
+    dofs = solver.global_dofs(V)
+    extra = dict(domain.columns, **problem_columns(cfg), **stability.report(cfg, problem, domain, outcome, dofs))
+    with phases("errors"):
+        # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
+        errors = measure.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
+        level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
+        if verifier is not None:  # Γ_C measures, reference errors (issue 4)
+            verifier.measure(level, domain, u_h, forms)
+    reference_s = level.extra.get("reference_time_s") or 0.0  # its own column, in neither time_s nor t_errors
+    phases.deduct("errors", reference_s)
+    if cfg.output.fields:
+        with phases("output"):
+            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
+    measuring = reference_s + (outcome.floor_s or 0.0)  # the linear floor too: a measurement, not the study's work
+    level.time_s = comm.allreduce(time.perf_counter() - start - measuring, op=MPI.MAX)
+    level.timings = timing_columns(outcome, phases, comm, mesh_peak_mb)
+    return level
+
+
+def problem_columns(cfg):
+    """What every row says of the discrete problem it solved: the contact term's rule."""
+    return {"contact_quadrature": str(cfg.contact_quadrature)}
+
+
+def timing_columns(outcome, phases, comm, mesh_peak_mb):
+    """The level's t_* phase times, its peak memory (at its end and right after its mesh) and, when
+    measured, its linear floor and the ratio of the Newton solve to it (issue 6); t_output grows when
+    results.write records the level."""
+    columns = dict(phases.columns(comm), peak_memory_mb=timing.peak_memory_mb(comm),
+                   peak_memory_mesh_mb=mesh_peak_mb)
+    if outcome.floor_s is not None:
+        columns.update(t_linear_floor=outcome.floor_s, floor_ratio=columns["t_newton"] / outcome.floor_s)
+    return columns

@@ -1,0 +1,47 @@
+"""The Signorini VI as a refinement study (paper eq. (8), docs/limit.md): the rate table with ε = 0."""
+import time
+
+from mpi4py import MPI
+from dolfinx import fem
+
+from ..meshing import meshes
+from ..meshing.meshes import FACES_2D, FACES_3D
+from ..problems import compliance, measure, vi
+from ..solve import solver
+from .level import Level
+
+
+def run_signorini(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+    """The VI refinement study: one Level per mesh, the SPEC rate table with ε = 0; each level starts
+    from the last converged one as the strategy says (nested iteration)."""
+    levels, previous = [], None
+    for index, n in enumerate(cfg.mesh.refinements):
+        start = time.perf_counter()
+        level, u_h = signorini_level(cfg, index, meshes.build(cfg.mesh, cfg.contact, n, comm), start,
+                                     previous, monitor)
+        levels.append(level)
+        previous = u_h if level.outcome.converged else previous
+        if on_level is not None:
+            on_level(levels)
+        if not level.outcome.converged and cfg.solver.on_failure == "stop":
+            break
+    return levels
+
+
+def signorini_level(cfg, index, domain, start, previous=None, monitor=None):
+    """(Level, u_h): the VI on `domain`, measured against u_S if given, with its contact state."""
+    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
+    u_h = fem.Function(V, name="u_h")
+    u_exact = compliance.exact_solution(cfg, domain.mesh, None)
+    bc = compliance.dirichlet_condition(V, domain, u_exact)
+    outcome, forms = vi.solve(cfg, domain, u_h, bc, previous, monitor)
+    errors = measure.errors(u_h, u_exact, domain.h) if u_exact is not None else {}
+    state = vi.contact_state(forms, u_h, domain, bc)
+    extra = {"contact_nodes": state.nodes, "contact_measure": state.measure,
+             "contact_force": state.force, "pressure_max": state.pressure_max}
+    if u_exact is not None:
+        face = (FACES_2D if cfg.dimension == 2 else FACES_3D)[cfg.contact]
+        extra["pressure_L2"] = vi.pressure_error(forms, u_h, domain, bc, face)
+    elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+    dofs = solver.global_dofs(V)
+    return Level(index, domain.n, domain.h, dofs, 0.0, outcome, errors, elapsed, extra), u_h

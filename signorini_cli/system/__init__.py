@@ -1,0 +1,1 @@
+"""The machine: atomic file writes, child processes, clocks and memory."""
