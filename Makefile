@@ -38,12 +38,9 @@ test-serial: setup
 test-mpi: setup
 	$(MPIRUN) $(PY) -m pytest --with-mpi -m mpi -q -p no:cacheprovider
 
-# the inner loop (< 30 s): config, expressions, rates, verdict, progress, the bad-input corpus, meshes, the
-# contact integrals and the weak form; `make test` stays the full suite that CI runs
-FAST_TESTS := tests/test_config.py tests/test_expressions.py tests/test_rates.py tests/test_verdict.py \
-              tests/test_progress.py tests/test_bad_input.py tests/test_meshes.py
+# the inner loop (< 30 s): the tests marked `fast`; `make test` stays the full suite that CI runs
 test-fast: setup
-	$(PY) -m pytest -m "not mpi" -q -p no:cacheprovider $(FAST_TESTS)
+	$(PY) -m pytest -m "fast and not mpi" -q -p no:cacheprovider
 
 run: setup
 	$(SIGNORINI) run $(CONFIG) --force

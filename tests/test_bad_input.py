@@ -13,6 +13,8 @@ from mpi4py import MPI
 
 from signorini_cli.app import cli
 
+pytestmark = pytest.mark.fast
+
 CORPUS = sorted((Path(__file__).parent / "bad_input").glob("*.yaml"))
 parametrize_corpus = pytest.mark.parametrize("path", CORPUS, ids=[p.stem for p in CORPUS])
 

@@ -11,6 +11,8 @@ from signorini_cli import config
 from signorini_cli.config import geometry_files, settings
 from conftest import BASE, merge
 
+pytestmark = pytest.mark.fast
+
 
 def load(changes):
     return config.loads(yaml.safe_dump(merge(BASE, changes)))

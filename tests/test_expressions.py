@@ -7,6 +7,8 @@ import pytest
 
 from signorini_cli.config import expressions
 
+pytestmark = pytest.mark.fast
+
 XY = ("x", "y")
 
 

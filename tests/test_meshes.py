@@ -16,6 +16,8 @@ from dolfinx import fem
 from signorini_cli import config, studies
 from signorini_cli.meshing import grids, meshes
 
+pytestmark = pytest.mark.fast
+
 ROOT = Path(__file__).resolve().parent.parent
 KINDS = [pytest.param("unit_square", d, id=f"square-{d}") for d in ("right", "left", "crossed")]
 KINDS.append(pytest.param("unit_cube", "right", id="cube"))

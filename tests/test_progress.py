@@ -8,6 +8,8 @@ from signorini_cli import config
 from signorini_cli.report import progress
 from conftest import BASE, merge
 
+pytestmark = pytest.mark.fast
+
 
 def row(level, n, seconds, converged=True):
     return {"level": level, "N": n, "dofs": (n + 1) ** 2, "epsilon": 1.0 / n, "converged": converged,

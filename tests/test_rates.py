@@ -6,6 +6,8 @@ import pytest
 
 from signorini_cli.analysis import rates
 
+pytestmark = pytest.mark.fast
+
 
 def test_observed_exact_power_law():
     h = [0.5, 0.25, 0.1]

@@ -11,6 +11,8 @@ from signorini_cli.record import results
 from signorini_cli.solve.solver import Outcome
 from signorini_cli.studies import Level
 
+pytestmark = pytest.mark.fast
+
 H = [0.2, 0.1, 0.05, 0.025]
 
 
