@@ -106,7 +106,7 @@ def level_costs(rows):
 
 def scaling_levels(rows):
     """The level_costs at least FLOOR_FACTOR times the cheapest: costs that grow with the dofs, not a
-    fixed set-up floor (on the recorded studies estimates from them stay within 3x, tests/test_progress.py)."""
+    fixed set-up floor (on the recorded studies estimates from them stay within 3x, tests/report/test_progress.py)."""
     costs = [(d, t) for d, t in level_costs(rows) if t > 0]
     if not costs:
         return []

@@ -75,7 +75,7 @@ def demo_like(levels=7):
     return rows
 
 
-DEMO = config.load(Path(__file__).resolve().parent.parent / "configs" / "demo.yaml")
+DEMO = config.load(Path(__file__).resolve().parents[2] / "configs" / "demo.yaml")
 
 
 def test_paper_columns_are_the_norms_the_paper_bounds():

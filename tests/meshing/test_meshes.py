@@ -18,7 +18,7 @@ from signorini_cli.meshing import grids, meshes
 
 pytestmark = pytest.mark.fast
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 KINDS = [pytest.param("unit_square", d, id=f"square-{d}") for d in ("right", "left", "crossed")]
 KINDS.append(pytest.param("unit_cube", "right", id="cube"))
 # Errors of one discrete problem solved twice: serially the meshes are bit for bit the same (so are the
@@ -159,7 +159,7 @@ def compare_with_dolfinx_meshes(path, comm, monkeypatch):
     """Our meshes against dolfinx's own (the meshes of before), on the same communicator, with the
     degree-6 contact rule: the adaptive data rule of contact_quadrature: exact agrees with itself to ~1e-9
     only on N = 4 facets, so on 2 ranks, where the meshes are partitioned differently, it would compare the
-    rule's round-off, not the meshes (the exact rule's own serial/2-rank agreement: tests/test_contact.py)."""
+    rule's round-off, not the meshes (the exact rule's own serial/2-rank agreement: tests/problems/test_contact.py)."""
     cfg = dataclasses.replace(small(config.load(path)), contact_quadrature=6)
     ours = measured(studies.run_study(cfg, comm=comm))
     monkeypatch.setattr(grids, "create", legacy_create)

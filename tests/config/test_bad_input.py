@@ -1,4 +1,4 @@
-"""The bad-input corpus tests/bad_input/: every config exits 2 with its one expected line and no
+"""The bad-input corpus tests/config/bad_input/: every config exits 2 with its one expected line and no
 traceback, serially and on 2 ranks (one line, from rank 0)."""
 import collections
 import os
@@ -34,13 +34,13 @@ def expected_line(path):
 def counts_line():
     """How README.md states the corpus: its size and the cases per kind (the file names' first word)."""
     kinds = collections.Counter(path.stem.split("-")[0] for path in CORPUS)
-    return (f"`tests/bad_input/` holds {len(CORPUS)} bad configs "
+    return (f"`tests/config/bad_input/` holds {len(CORPUS)} bad configs "
             f"({', '.join(f'{kind} {n}' for kind, n in sorted(kinds.items()))})")
 
 
 def test_readme_states_the_corpus_counts():
     """The counts in README.md are this run's: a changed corpus fails here with the line to put there."""
-    readme = " ".join((Path(__file__).parents[1] / "README.md").read_text().split())
+    readme = " ".join((Path(__file__).parents[2] / "README.md").read_text().split())
     assert counts_line() in readme, f"README.md should say: {counts_line()}"
 
 

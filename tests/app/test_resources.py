@@ -119,7 +119,7 @@ def test_gmsh_size_too_small_refused_before_meshing(tmp_path, capsys, monkeypatc
 
 
 def test_msh_file_refined_too_often_refused(tmp_path, capsys):
-    msh = Path(__file__).resolve().parent.parent / "meshes/examples/quarter_annulus.msh"
+    msh = Path(__file__).resolve().parents[2] / "meshes/examples/quarter_annulus.msh"
     path = write(tmp_path, mesh={"kind": "file", "path": str(msh), "refine": "uniform", "refinements": [0, 12]},
                  contact="inner_arc", problem={"exact": "cos(pi*x)*sin(pi*y)"})
     assert cli.main(["run", path]) == cli.EXIT_BAD_INPUT

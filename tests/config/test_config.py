@@ -248,7 +248,7 @@ def test_limit_rejection_names_key(changes, message):
 
 @pytest.mark.parametrize("name", ["signorini", "sweep", "total"])
 def test_limit_to_dict_round_trip(name):
-    resolved = config.to_dict(config.load(Path(__file__).resolve().parent.parent / "configs/limit" / f"{name}.yaml"))
+    resolved = config.to_dict(config.load(Path(__file__).resolve().parents[2] / "configs/limit" / f"{name}.yaml"))
     assert config.to_dict(config.from_dict(resolved)) == resolved  # `signorini check` prints a valid config
 
 

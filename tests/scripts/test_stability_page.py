@@ -10,7 +10,7 @@ import pytest
 
 from signorini_cli import config
 
-SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
+SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 sys.path.insert(0, str(SCRIPTS))  # the page generators share scripts/provenance.py
 stability = runpy.run_path(str(SCRIPTS / "stability.py"))
 HAS_RULES = "contact_quadrature" in {f.name for f in dataclasses.fields(config.Config)}

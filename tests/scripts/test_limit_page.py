@@ -19,7 +19,7 @@ STUDIES = {
 }
 
 
-SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
+SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 sys.path.insert(0, str(SCRIPTS))  # the page generators share scripts/provenance.py
 limit_page = runpy.run_path(str(SCRIPTS / "limit_page.py"))
 

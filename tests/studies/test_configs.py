@@ -7,7 +7,7 @@ from mpi4py import MPI
 from signorini_cli import config, studies
 from signorini_cli.analysis import rates
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = sorted(ROOT.glob("configs/**/*.yaml"))
 parametrize_configs = pytest.mark.parametrize("path", CONFIGS, ids=[str(p.relative_to(ROOT / "configs")) for p in CONFIGS])
 

@@ -14,7 +14,7 @@ from signorini_cli.meshing import meshes
 from signorini_cli.record import results
 from conftest import BASE, U_SIGNORINI, merge
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 LIMIT_CONFIGS = sorted(ROOT.glob("configs/limit/*.yaml"))
 SWEEP = {"study_type": "epsilon_sweep", "alpha": None, "epsilon": None,
          "problem": {"exact": U_SIGNORINI, "exact_solves": "signorini"},

@@ -8,7 +8,7 @@ from mpi4py import MPI
 from signorini_cli import studies
 from signorini_cli.record import results
 
-DOCS = Path(__file__).resolve().parent.parent / "docs"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 
 def python_blocks(path):

@@ -11,7 +11,7 @@ import yaml
 from signorini_cli.app import cli
 from conftest import BASE, U_SIGNORINI, merge
 
-SCRIPTS = Path(__file__).resolve().parent.parent / "scripts"
+SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
 precision = runpy.run_path(str(SCRIPTS / "precision.py"))
 QUIET = {"output": {"plots": False}}
