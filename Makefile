@@ -134,3 +134,10 @@ bench/results.md: scripts/bench.py scripts/provenance.py $(wildcard bench/config
 precision: docs/precision.md
 docs/precision.md: scripts/precision.py scripts/provenance.py $(CONFIGS) $(PACKAGE) | $(STAMP)
 	$(PY) scripts/precision.py --page $@
+
+.PHONY: reference
+# the config reference, generated from the config's dataclasses (tests/scripts/test_config_reference.py keeps it current)
+reference: docs/reference/config.md
+docs/reference/config.md: scripts/config_reference.py $(PACKAGE) | $(STAMP)
+	$(PY) scripts/config_reference.py > $@.tmp
+	@mv $@.tmp $@; echo "wrote $@"

@@ -116,7 +116,7 @@ def main(argv):
     out = ["# Studies on gmsh geometries", "",
            provenance.line("geometries", [Path(d) / config.load(p).study for d in (serial_dir, mpi_dir)
                                           for p in paths]),
-           "Runs of `configs/gmsh/*.yaml`, serially and under `mpirun -n 2`. Columns: see README (Meshes from gmsh geometries). "
+           "Runs of `configs/gmsh/*.yaml`, serially and under `mpirun -n 2`. Columns: see docs/guide/meshes.md. "
            "\\|Γ_C\\| − \\|Γ_C,h\\| is the gap between the exact and the discrete contact boundary "
            "(the polygonal geometry error; its rate in h is 2 for re-meshed curved boundaries, and it is 0 or "
            "constant on straight boundaries and nested families).", ""]

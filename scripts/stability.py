@@ -553,7 +553,7 @@ def header(out):
     return "\n".join(["# Stability on stiff and extreme cases", "",
                       provenance.line("stiff", sorted({p.parent for p in Path(out).rglob("study.h5")})), "",
                       f"`scripts/stability.py` on {cpu}, {os.cpu_count()} cores, 1 MPI rank.", "",
-                      "How a level is solved and when it counts as converged: README.md, *Robust solves*. In short: "
+                      "How a level is solved and when it counts as converged: docs/guide/solvers.md. In short: "
                       "`strategy: auto` starts each level from the previous level's solution (nested iteration) and "
                       "falls back to ε-continuation when Newton fails; a solve succeeds when ‖F‖ ≤ rtol · "
                       "‖load without penalty‖, or when the full Newton correction is ≤ stol · ‖u_h‖ (directly, "

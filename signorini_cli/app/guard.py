@@ -25,7 +25,7 @@ SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # reports it alone (its MPI abort ends the others first). Below Open MPI's 1 s between the SIGTERM
 # mpirun forwards on Ctrl-C and its SIGKILL.
 GRACE_S = 0.5
-# Testing hook, documented in README: SIGNORINI_TEST_FAIL=RANK:LEVEL makes that rank raise as that
+# Testing hook, documented in docs/guide/faults.md: SIGNORINI_TEST_FAIL=RANK:LEVEL makes that rank raise as that
 # level starts, like a crash inside a level (tests/app/test_guard.py: one rank of two fails).
 TEST_FAIL = "SIGNORINI_TEST_FAIL"
 CRASH_STATUS = 3  # a bug (an exception that is no bad input): its traceback is printed, the status kept

@@ -44,7 +44,7 @@ MAX_REFERENCE_REFINEMENTS = 2
 ERROR_NORMS, REFERENCE_NORMS = names.ERROR_NORMS, names.REFERENCE_NORMS
 STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error")  # the last three: docs/limit.md
 EXACT_SOLVES = ("compliance", "signorini")
-DOCS = 'README.md, section "Config"'  # where every key is described; `signorini init` prints them all
+DOCS = "docs/reference/config.md"  # where every key is described; `signorini init` prints them all
 
 
 class ConfigError(ValueError):
@@ -246,7 +246,7 @@ class Config:
     problem: Problem = key(None, "give exact, or f (and g)")
     positive_part: PositivePart = key(PositivePart(), "exact | smooth | {kind: smooth, delta: ...}")
     contact_quadrature: object = key("exact", "exact | vertex | an integer >= 1 (a Gauss rule of that degree)")
-    solver: Solver = key(Solver(), "Newton and linear solves (README, \"Robust solves\")")
+    solver: Solver = key(Solver(), "Newton and linear solves (docs/guide/solvers.md)")
     output: Output = key(Output(), "where and what is written")
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
@@ -983,6 +983,22 @@ def _template_lines(cls, depth, commented):
         lines.append(f"{lead}{name}: {value}".ljust(40) + comment)
     return lines
 
+
+def documented_keys(cls=Config, prefix=""):
+    """(dotted path, default as YAML, description, when it applies) of every key, sections included: the
+    config reference (docs/reference/config.md) is generated from these, as `signorini init` is."""
+    rows = []
+    for name in keys_of(cls):
+        f = _fields(cls)[name]
+        path = _join(prefix, name)
+        doc, only = f.metadata["doc"], f.metadata["only"]
+        if f.type in SECTIONS:
+            rows.append((path, "", doc, only))
+            rows += documented_keys(f.type, path)
+        else:
+            rows.append((path, _flow(f.metadata["example"] if f.default is None and f.metadata["example"]
+                                     is not None else f.default), doc, only))
+    return rows
 
 def _flow(value):
     """value as one line of YAML."""

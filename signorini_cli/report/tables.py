@@ -283,7 +283,7 @@ def _load_h5(path):
             attrs = {key: _python(value) for key, value in h5.attrs.items()}
             if attrs.get("study_type") in ("epsilon_sweep", "total_error"):  # docs/limit.md: no rate table
                 raise ConfigError("study_type", f"an {attrs['study_type']} study has no rate table to report; "
-                                                "its tables are the CSV files next to study.h5 (README: Results)")
+                                                "its tables are the CSV files next to study.h5 (docs/guide/outputs.md)")
             rows = _h5_rows(h5, path)
     except DamagedResults:
         raise

@@ -101,7 +101,7 @@ def test_help_names_the_config_docs(capsys):
     with pytest.raises(SystemExit):
         cli.main(["run", "--help"])
     out = " ".join(capsys.readouterr().out.split())
-    assert 'README.md, section "Config"' in out and "signorini init" in out and "-snes_monitor" in out
+    assert "docs/reference/config.md" in out and "signorini init" in out and "-snes_monitor" in out
 
 
 def test_petsc_options_on_the_command_line(tmp_path, capsys):

@@ -32,16 +32,16 @@ def expected_line(path):
 
 
 def counts_line():
-    """How README.md states the corpus: its size and the cases per kind (the file names' first word)."""
+    """How docs/guide/config.md states the corpus: its size and the cases per kind (the file names' first word)."""
     kinds = collections.Counter(path.stem.split("-")[0] for path in CORPUS)
     return (f"`tests/config/bad_input/` holds {len(CORPUS)} bad configs "
             f"({', '.join(f'{kind} {n}' for kind, n in sorted(kinds.items()))})")
 
 
 def test_readme_states_the_corpus_counts():
-    """The counts in README.md are this run's: a changed corpus fails here with the line to put there."""
-    readme = " ".join((Path(__file__).parents[2] / "README.md").read_text().split())
-    assert counts_line() in readme, f"README.md should say: {counts_line()}"
+    """The counts in docs/guide/config.md are this run's: a changed corpus fails here with the line to put there."""
+    readme = " ".join((Path(__file__).parents[2] / "docs/guide/config.md").read_text().split())
+    assert counts_line() in readme, f"docs/guide/config.md should say: {counts_line()}"
 
 
 def test_corpus_cases_are_distinct_and_state_their_message():
