@@ -123,13 +123,13 @@ docs/stability.md: scripts/stability.py scripts/provenance.py $(CONFIGS) $(PACKA
 	$(PY) scripts/stability.py
 
 .PHONY: bench
-# issue 6: bench/configs/ serially, on $(NP) ranks and with three start strategies -> bench/results.md, .csv
+# bench/configs/ serially, on $(NP) ranks and with three start strategies -> bench/results.md, .csv
 bench: bench/results.md
 bench/results.md: scripts/bench.py scripts/provenance.py $(wildcard bench/configs/*.yaml) $(PACKAGE) | $(STAMP)
 	$(PY) scripts/bench.py
 
 .PHONY: precision
-# issue 17 item 5: every configs/**/*.yaml (first 4 levels in 2-D, 3 in 3-D) at default settings, with a tight
+# every configs/**/*.yaml (first 4 levels in 2-D, 3 in 3-D) at default settings, with a tight
 # solve and with solver.polish=0 -> docs/precision.md; fails when an error entry moves by > 1e-6
 precision: docs/precision.md
 docs/precision.md: scripts/precision.py scripts/provenance.py $(CONFIGS) $(PACKAGE) | $(STAMP)

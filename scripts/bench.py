@@ -1,4 +1,4 @@
-"""`make bench`: the benchmark of issues 6 and 15. Runs bench/configs/ in fresh processes (peak memory and
+"""`make bench`: the speed and memory benchmark. Runs bench/configs/ in fresh processes (peak memory and
 PETSc's event log are per process), serially and on 2 ranks, with the three start strategies, and for the
 scaling section on 4 and 8 ranks (oversubscribed: memory per rank) and at 128^3 in 3-D, then writes
 bench/results.csv and bench/results.md. Every number in them comes from these runs.
@@ -33,9 +33,9 @@ BENCH_RUNS = (("square", "square", 1, ()), ("square-2-ranks", "square", 2, ()),
               ("cube", "cube", 1, ()), ("stiff", "stiff", 1, ()),
               # the memory target: the floor's own KSP and AMG hierarchy would raise the peak
               ("square-no-floor", "square", 1, ("solver.linear_floor=false",)),
-              # issue 17: what the polish (Newton steps after success) costs, against the unpolished solve
+              # what the polish (Newton steps after success) costs, against the unpolished solve
               ("square-unpolished", "square", 1, ("solver.polish=0",)))
-# issue 15: the finest 3-D levels on 1 and 2 ranks (cube: 64^3 with its floors, cube-128: 128^3, 2.1M dofs,
+# the finest 3-D levels on 1 and 2 ranks (cube: 64^3 with its floors, cube-128: 128^3, 2.1M dofs,
 # without), and the largest rank's peak memory on 4 and 8 ranks (more ranks than cores: memory, not speed)
 SCALING_RUNS = (("cube-2-ranks", "cube", 2, ()), ("cube-128", "cube-128", 1, ()),
                 ("cube-128-2-ranks", "cube-128", 2, ()),
@@ -50,10 +50,10 @@ CHOICE_RUNS = (("square-direct", "square", 1, (UP_TO_512, "solver.linear=direct"
                                                   "solver.petsc_options.snes_lag_preconditioner=-2")),
                ("square-iterative", "square", 1, (UP_TO_512, "solver.linear=iterative")),
                ("square-inexact", "square", 1, (UP_TO_512, "solver.linear=iterative", "solver.inexact=true")))
-# the speed-up pair runs twice each and keeps its faster run (the finest level's wall time), as issue 15
+# the speed-up pair runs twice each and keeps its faster run (the finest level's wall time), as the
 # measured it: on this shared virtual machine one run's finest level varies by up to 20 %
 BEST_OF = {"square": 2, "square-2-ranks": 2}
-# the targets of issues 6 and 15, checked on the runs named
+# the speed and memory targets, checked on the runs named
 TARGETS = {"floor_ratio": 2.0, "exponent": 1.15, "speedup": 1.6, "kb_per_dof": 1.0, "study_over_floors": 3.0,
            "largest_rank_4": 0.45, "contact_share": 0.10, "tutorial_ratio": 0.5}
 FIT_LEVELS = 3  # the exponent of solve time against dofs: least squares over the last three levels
@@ -170,7 +170,7 @@ def floors(rows):
 
 
 def targets(runs):
-    """(target, runs, measured, limit, met, note) rows for the targets of issue 6."""
+    """(target, runs, measured, limit, met, note) rows for the speed targets."""
     square, cube, two = runs["square"]["rows"], runs["cube"]["rows"], runs["square-2-ranks"]["rows"]
     speedup = square[-1]["time_s"] / two[-1]["time_s"]
     rows = [("nonlinear solve / linear floor, finest 2-D level", f"square N={square[-1]['N']:.0f}",
@@ -213,7 +213,7 @@ def page(runs, machine):
              "level's own linear solver and tolerance, in the same run (`solver.linear_floor: true`); the "
              "*nonlinear solve* is `t_newton`, the SNES solves of the level (its initial guess, `t_transfer`, "
              "is timed apart). Times in seconds, wall clock, largest over ranks. The speed-up pair (`square`, "
-             "`square-2-ranks`) runs twice each and keeps the run whose finest level was faster, as issue 15 "
+             "`square-2-ranks`) runs twice each and keeps the run whose finest level was faster, as the "
              "measured it (both times are in its section).", "",
              "## Targets", "", "| target | run | measured | target | met |", "|---|---|---|---|---|"]
     for what, where, value, limit, met, sense in targets(runs):
@@ -230,12 +230,12 @@ def page(runs, machine):
 
 
 def polish_note(runs):
-    """Issue 17, item 5: the cost of the polish (Newton steps after success), finest 2-D level."""
+    """The cost of the polish (Newton steps after success), finest 2-D level."""
     polished, bare = runs["square-no-floor"]["rows"], runs["square-unpolished"]["rows"]
     its = [sum(r["newton_its"] for r in rows) for rows in (bare, polished)]
     newton = [sum(r["t_newton"] for r in rows) for rows in (bare, polished)]
     tutorial = runs["tutorial"]
-    return ["The polish (issue 17, `solver.polish`: Newton steps after success until the quadratic model "
+    return ["The polish (`solver.polish`: Newton steps after success until the quadratic model "
             "predicts an algebraic error <= 1e-13 ||u_h||), square study without the floor: Newton iterations "
             f"{its[0]:.0f} -> {its[1]:.0f}, Newton time {newton[0]:.2f} s -> {newton[1]:.2f} s "
             f"({newton[1] / newton[0] - 1:+.0%}).", "",
@@ -246,7 +246,7 @@ def polish_note(runs):
 
 
 def tutorial():
-    """Issue 16: the whole default `signorini run` of the demo on N = 8..512 (figures included) and the
+    """The whole default `signorini run` of the demo on N = 8..512 (figures included) and the
     tutorial-style script on the same levels, each in a fresh process, wall clock."""
     out = RUNS / "tutorial"
     out.mkdir(parents=True, exist_ok=True)
@@ -333,7 +333,7 @@ SCALING_PHASES = ("t_mesh", "t_forms", "t_transfer", "t_newton", "t_linear", "t_
 
 
 def scaling_section(runs, machine):
-    """Issue 15: the finest 2-D and 3-D levels on 1 and 2 ranks, phase by phase; the largest rank's
+    """The finest 2-D and 3-D levels on 1 and 2 ranks, phase by phase; the largest rank's
     peak memory on 1, 4 and 8 ranks; the whole study against the sum of its linear floors."""
     lines = ["## Scaling", "",
              "The built-in meshes are built in place: each rank makes its own slab of cells (`grids.py`), no rank "
@@ -413,7 +413,7 @@ def _choice_cell(row):
 
 
 def report_cost(repeats=3):
-    """Issue 16: `signorini report` of the demo's 2-D study with N = 8..512 (7 levels), with its default
+    """`signorini report` of the demo's 2-D study with N = 8..512 (7 levels), with its default
     figures and with --no-plots, each in fresh processes (best of `repeats`); a section of the page."""
     out = RUNS / "report"
     subprocess.run(SIGNORINI + ["run", "configs/demo.yaml", "--force", "--quiet", "--output", str(out), "--set",
@@ -429,7 +429,7 @@ def report_cost(repeats=3):
             times.append(time.perf_counter() - start)
         seconds[label] = min(times)
     ratio = seconds["with figures"] / seconds["--no-plots"]
-    return "\n".join(["", "## Report and figures (issue 16)", "",
+    return "\n".join(["", "## Report and figures", "",
                       "`signorini report` of `configs/demo.yaml` with N = 8..512 (7 levels), best of "
                       f"{repeats} fresh processes: {seconds['with figures']:.2f} s with its default figures "
                       f"(convergence, work–precision, Newton; PNG and PDF), {seconds['--no-plots']:.2f} s with "

@@ -172,12 +172,12 @@ def total_section(path, cfg):
         "refinement study solved by the VI directly (row `signorini`, ε = 0). `rate_*` is the rate of the "
         f"last two levels, `fit_*` the least-squares slope of the last {cfg.limit.fit_last}; `expected_*` is the "
         "heuristic min(1, p/α) in H1 and min(2, p/α) in L2 from ‖u_S − u_{ε,h}‖ ≤ ‖u_S − u_{S,h}‖ + "
-        "‖u_{S,h} − u_{ε,h}‖ = O(h^{1 or 2}) + O(ε^{1/α}) (section 2), not a theorem. Each study's SPEC rate "
+        "‖u_{S,h} − u_{ε,h}‖ = O(h^{1 or 2}) + O(ε^{1/α}) (section 2), not a theorem. Each study's rate "
         "table is in its own folder (`<output>/" + cfg.study + "/<study>/rates.csv`).",
         "",
         markdown(rows, columns),
         "",
-        "The paper's rates (SPEC table) bound u_ε − u_{ε,h} for ε ≳ h; against the Signorini solution the "
+        "The paper's rates bound u_ε − u_{ε,h} for ε ≳ h; against the Signorini solution the "
         "model error adds O(ε^{1/α}), so by the heuristic ε = θh keeps O(h) in H1 only for α = 1, and the VI's "
         "own rates need ε ≲ h^α (H1) and ε ≲ h^{2α} (L2). The expected values are asymptotic: where ε(h) is "
         "still in the pre-asymptotic range of section 2 (local ε-rates below 1/α, larger α and p = 1), the "

@@ -1,5 +1,5 @@
 """`make precision`: every shipped config solved at default settings and with a tight solve, every error
-column of every table compared (issue 17, item 5: the default keeps each within 1e-6 of the tight one),
+column of every table compared (the default keeps each within 1e-6 of the tight one),
 and the cost of the default's polish (Newton steps after success) against `solver.polish=0`."""
 import argparse
 import csv
@@ -24,7 +24,7 @@ AGREE = 1e-6  # the issue's bound: the algebraic error of a reported quantity <=
 # at each step reaches round-off; where round-off floors the steps (α = 2, ε = 1e-8), a stricter success
 # test (stol = 1e-12) cannot pass at all. A step that fails returns the last iterate that passed.
 TIGHT = (("solver.polish=3",), {"POLISH_TOL": 0.0, "POLISH_STALL": math.inf})
-UNPOLISHED = (("solver.polish=0",), {})  # the default before issue 17: the cost baseline
+UNPOLISHED = (("solver.polish=0",), {})  # the former default, without the polish: the cost baseline
 # coarse levels keep `make precision` near 20 minutes on 2 cores: the first levels of each family
 MAX_LEVELS = {2: 4, 3: 3}
 VARIANTS = {"default": ((), {}), "tight": TIGHT, "unpolished": UNPOLISHED}
@@ -169,11 +169,11 @@ def main(argv=None):
     return 0 if ok else 1
 
 
-PAGE = """# Solved as precisely as it is measured (issue 17, item 5)
+PAGE = """# Solved as precisely as it is measured
 
 {provenance} Every shipped config (`configs/**/*.yaml`, its first 4 levels in 2-D and 3 in 3-D) is run three
 times: with the default settings, with a tight solve (after success always 3 more Newton steps) and with
-`solver.polish: 0` (the stopping test before issue 17). For every error entry of every table the relative
+`solver.polish: 0` (the stopping test without the polish). For every error entry of every table the relative
 difference between the default and the tight solve is listed; the bound is 1e-6 of the quantity.
 
 {table}

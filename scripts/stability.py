@@ -337,7 +337,7 @@ def slope(x, y):
     return float(np.polyfit(np.log([a for a, _ in pairs]), np.log([b for _, b in pairs]), 1)[0]) if len(pairs) > 1 else None
 
 
-# --- contact quadrature rules (issue 17) ------------------------------------------------------------
+# --- contact quadrature rules ---------------------------------------------------------------------
 
 RULES = ("exact", "vertex", "6")  # contact_quadrature: exact integration, the lumped nodal rule, Gauss degree 6
 RULE_EPS = ("h", "1.0e-2", "1.0e-4", "1.0e-6", "1.0e-8", "1.0e-10", "1.0e-12", "1.0e-14")  # "h": ε = h
@@ -426,7 +426,7 @@ def gap_summary(found):
     return table(header, lines), exact_failed
 
 
-# issue 17: two independent libraries (scikit-fem, NGSolve; agreeing to 5e-12) integrating the contact term
+# two independent libraries (scikit-fem, NGSolve; agreeing to 5e-12) integrating the contact term
 # exactly, 2-D, α = 1, ε = 1e-8, u = sin(2πx)(1−y)²: L2 error at N = 16 and 64
 INDEPENDENT = {16: 5.800452e-3, 64: 4.055548e-4}
 
@@ -437,7 +437,7 @@ def independent_check(found):
     said = [f"N = {n}: {fmt(rows[n]['L2'], '.6e')} against {value:.6e} (relative difference "
             f"{fmt(relative_difference(rows[n]['L2'], value), '.1e')})" for n, value in INDEPENDENT.items()
             if n in rows and rows[n].get("L2") is not None]
-    return ("The exact rule against two independent implementations that integrate the term exactly (issue 17: "
+    return ("The exact rule against two independent implementations that integrate the term exactly ("
             "scikit-fem and NGSolve, 2-D, α = 1, ε = 1e-8): " + ("; ".join(said) or "not run") + ".")
 
 
@@ -451,7 +451,7 @@ def rules_section(found):
              "The compliance term (1/ε)∫_Γc [u_h]_+^α v of the P1 solution, integrated three ways "
              "(`contact_quadrature`): `exact` (the default: the integral of the weak form, cut at the zero of "
              "u_h on each Γ_C facet), `vertex` (the lumped, nodal penalty common in contact codes: weights |F|/d at "
-             "the d vertices of each facet F) and `6` (a Gauss rule of degree 6, the product's rule before issue 17). "
+             "the d vertices of each facet F) and `6` (a Gauss rule of degree 6, the product's former default). "
              "ε = h (the paper's regime, h/ε = 1) and constant ε from 1e-2 to 1e-14; 2-D: u = sin(2πx)(1−y)² "
              "on N = " + RULE_LEVELS[2] + ", 3-D: u = sin(2πx)sin(πy)(1−z)² on N = " + RULE_LEVELS[3] +
              ". 'gap' is |L2(rule) − L2(exact)| / L2(exact) on the same level; 'max [u_h]_+' the penetration, "

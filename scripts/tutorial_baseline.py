@@ -1,4 +1,4 @@
-"""The tutorial-style dolfinx 0.5.2 script the whole `signorini run` is timed against (issue 16): the demo
+"""The tutorial-style dolfinx 0.5.2 script the whole `signorini run` is timed against: the demo
 problem (2-D, alpha = 2, eps = h, u = sin(2 pi x)(1 - y)^2, contact on the bottom face) solved on N = 8 .. 512
 as the FEniCSx tutorial writes a nonlinear problem and a convergence study: UFL forms with the positive part
 as a conditional, dolfinx.nls.petsc.NewtonSolver with LU, errors through a degree-raised quadrature.

@@ -82,7 +82,7 @@ class Proven:
     conditions: str
 
 
-# SPEC.md "What the paper proves", one record per (row, norm), plus the Γ_C and energy-type terms the
+# What the paper proves (its Lemma 3.1, Corollary 3.2, Lemmas 4.2, 4.4, 4.5), one record per (row, norm), plus the Γ_C and energy-type terms the
 # same results bound. Norm names are the rate columns: H1 = |u - u_h|_H1, L2 = ||u - u_h||_L2,
 # pos_gc = ||[u]_+ - [u_h]_+||_{L^{alpha+1}(Γ_C)}, pos_gc_scaled = pos_gc^{(alpha+1)/2},
 # energy_err = (H1^2 + pos_gc^{alpha+1}/eps)^{1/2}.

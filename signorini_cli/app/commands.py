@@ -21,7 +21,7 @@ from . import guard, resources
 logger = logging.getLogger(__name__)
 
 EXIT_OK, EXIT_NOT_CONVERGED, EXIT_BAD_INPUT = 0, 1, 2
-EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed (issue 4)
+EXIT_EXPECTATION_NOT_MET = 1  # an `expect:` rate was missed
 
 SHIPPED_CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 

@@ -22,7 +22,7 @@ FACES = {2: ("left", "right", "bottom", "top"),
          3: ("left", "right", "front", "back", "bottom", "top")}
 DIAGONALS = ("right", "left", "crossed")
 POSITIVE_PARTS = ("exact", "smooth")
-CONTACT_QUADRATURES = ("exact", "vertex")  # or an integer >= 1: a Gauss rule of that degree (issue 17)
+CONTACT_QUADRATURES = ("exact", "vertex")  # or an integer >= 1: a Gauss rule of that degree
 # smoothing of [u]_+: delta^2/eps is the flux error off contact, so delta ~ h sqrt(eps) keeps it O(h^2)
 # for every eps; docs/stability.md (make stiff) measures the laws this was chosen from
 DEFAULT_DELTA = "1e-2*h*sqrt(eps)"
@@ -32,11 +32,11 @@ ON_FAILURE = ("continue", "stop")
 STRATEGIES = ("plain", "nested", "continuation", "auto")
 METHODS = ("newtonls", "newtontr")  # PETSc SNES types: line-search Newton, trust-region Newton
 PRECONDITIONERS = ("boomeramg", "gamg")  # algebraic multigrid for linear: iterative
-CONTACT_QUADRATURES = ("exact", "vertex")  # or an integer >= 1: a Gauss rule of that degree (SPEC)
+CONTACT_QUADRATURES = ("exact", "vertex")  # or an integer >= 1: a Gauss rule of that degree
 TABLE_COLUMNS = ("paper", "all")  # or a list of column names (report)
 MAX_ALPHA_3D = 3.0  # the paper's condition (5): 1 <= alpha <= 3 when d = 3
 COORDINATES = {2: ("x", "y"), 3: ("x", "y", "z")}
-# verification.measures: what a level measures beyond L2/H1 (issue 4; README "Verification")
+# verification.measures: what a level measures beyond L2/H1 (docs/guide/verification.md)
 MEASURES = names.MEASURE_KEYS
 REFERENCE_EPSILONS = ("per_level", "fixed")
 MAX_REFERENCE_REFINEMENTS = 2
@@ -71,7 +71,7 @@ class Law:
     tex: str   # LaTeX (math mode), e.g. \sqrt{h}
 
 
-# the one table of eps laws: a new law is one line here (SPEC: theta_h, theta_sqrt_h, constant, power)
+# the one table of eps laws: a new law is one line here
 LAWS = {"theta_h": Law(1.0, "h", " h"), "theta_sqrt_h": Law(0.5, "√h", r"\sqrt{{h}}"),
         "constant": Law(0.0, "", ""), "power": Law(None, "h^{p:g}", " h^{{{p:g}}}")}
 POWER_LAW = "power"  # the law with a free exponent
@@ -189,7 +189,7 @@ class Solver:
     continuation: Continuation = key(Continuation(), "eps-continuation (strategy continuation or auto)")
     condition_max_dofs: int = key(0, "> 0: estimate cond(J) on levels with at most this many dofs")
     linear_floor: bool = key(False, "also time one linear solve per level (make bench)")
-    polish: int = key(3, "Newton steps after success, at most, to an error <= 1e-13 ||u_h|| (issue 17)")
+    polish: int = key(3, "Newton steps after success, at most, to an error <= 1e-13 ||u_h||")
 
 
 @dataclass(frozen=True)
@@ -590,7 +590,7 @@ def _contact(value, mesh, dim):
 
 
 def _contact_quadrature(value, path, positive_kind):
-    """exact | vertex | a Gauss rule's degree >= 1 (SPEC); exact and vertex integrate the exact positive
+    """exact | vertex | a Gauss rule's degree >= 1; exact and vertex integrate the exact positive
     part (the smooth one keeps its UFL quadrature)."""
     if isinstance(value, int) and not isinstance(value, bool):
         return _integer(value, path, low=1)

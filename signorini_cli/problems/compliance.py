@@ -1,4 +1,4 @@
-"""The compliance model in UFL: weak form (SPEC; paper eq. (10)), positive part, manufactured data."""
+"""The compliance model in UFL: weak form (paper eq. (10)), positive part, manufactured data."""
 from dataclasses import dataclass
 
 import numpy as np
@@ -10,7 +10,7 @@ from ..config import expressions
 from ..meshing.meshes import CONTACT, DIRICHLET
 from . import contact
 
-QUADRATURE_DEGREE = 6  # data terms (sin, exp ...); on Γ_C too with contact_quadrature: <degree> (6 before issue 17)
+QUADRATURE_DEGREE = 6  # data terms (sin, exp ...); on Γ_C too with contact_quadrature: <degree>
 
 
 @dataclass(frozen=True)

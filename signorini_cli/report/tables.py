@@ -306,7 +306,7 @@ def _h5_rows(h5, path):
 def _columns(table):
     if "columns" in table.attrs:
         return [str(c) for c in table.attrs["columns"]]
-    names = list(table)  # written before the `columns` attribute: SPEC order first, then by name
+    names = list(table)  # written before the `columns` attribute: the leading columns first, then by name
     return [c for c in SPEC_ORDER if c in names] + [c for c in names if c not in SPEC_ORDER]
 
 

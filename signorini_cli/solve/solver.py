@@ -34,7 +34,7 @@ FULL_STEP_TOL = 1e-8  # a step with lambda >= 1 - 1e-8 is the full Newton step (
 FULL_STEP_ROUNDOFF = 1e-12
 TR_RADIUS = 0.2  # newtontr's first radius, relative to max(||u_0||, sqrt(dofs)) (PETSc: 0.2 ||u_0||)
 LINEAR_SOLVE_FAILED = "DIVERGED_LINEAR_SOLVE"
-# polish (issue 17, item 5): after the success test, Newton goes on until the predicted error of the iterate is
+# polish: after the success test, Newton goes on until the predicted error of the iterate is
 # below POLISH_TOL ||u||. Reported errors are >= 1e-7 ||u_h|| (the smallest: the eps-sweep's model error and
 # data-push's L2_ref), so 1e-13 keeps the algebraic error of each below 1e-6 of it.
 POLISH_TOL = 1e-13
@@ -327,7 +327,7 @@ class NewtonSolver:
     def stiffness(self, A, K):
         """Assemble the split's fixed Jacobian K (the stiffness, identity rows on Γ_D) into A and return K's
         rows that the rest of J adds to (StoredRows): each Jacobian resets them to K and adds the rest, so
-        that no second matrix of the level's size is kept (issue 15: memory per dof)."""
+        that no second matrix of the level's size is kept (memory per dof)."""
         fem_petsc.assemble_matrix(A, K, bcs=self.bcs)
         A.assemble()
         return StoredRows.of(A, varying_rows(self.u.function_space, self.a_vary, self.contact))

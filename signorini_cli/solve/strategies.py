@@ -120,7 +120,7 @@ STRATEGIES = {"plain": plain, "nested": nested, "continuation": continuation, "a
 class Handoff:
     """The last converged level's u_h on its way to the next level's initial guess, which moves it onto
     its own mesh and leaves the moved function here in its place: the coarser mesh is let go of before
-    the finer level's solve (issue 15: memory per dof), and a level that fails still hands the last
+    the finer level's solve (memory per dof), and a level that fails still hands the last
     converged solution on (the same function on nested meshes)."""
 
     def __init__(self, u_h=None):

@@ -76,7 +76,7 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
         errors = measure.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
         level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
-        if verifier is not None:  # Γ_C measures, reference errors (issue 4)
+        if verifier is not None:  # Γ_C measures, reference errors
             verifier.measure(level, domain, u_h, forms)
     reference_s = level.extra.get("reference_time_s") or 0.0  # its own column, in neither time_s nor t_errors
     phases.deduct("errors", reference_s)
@@ -96,7 +96,7 @@ def problem_columns(cfg):
 
 def timing_columns(outcome, phases, comm, mesh_peak_mb):
     """The level's t_* phase times, its peak memory (at its end and right after its mesh) and, when
-    measured, its linear floor and the ratio of the Newton solve to it (issue 6); t_output grows when
+    measured, its linear floor and the ratio of the Newton solve to it; t_output grows when
     results.write records the level."""
     columns = dict(phases.columns(comm), peak_memory_mb=timing.peak_memory_mb(comm),
                    peak_memory_mesh_mb=mesh_peak_mb)

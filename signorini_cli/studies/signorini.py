@@ -12,7 +12,7 @@ from .level import Level
 
 
 def run_signorini(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
-    """The VI refinement study: one Level per mesh, the SPEC rate table with ε = 0; each level starts
+    """The VI refinement study: one Level per mesh, the rate table with ε = 0; each level starts
     from the last converged one as the strategy says (nested iteration)."""
     levels, previous = [], None
     for index, n in enumerate(cfg.mesh.refinements):

@@ -1,4 +1,4 @@
-"""Where a level's time goes: wall time per phase and peak memory, for error-against-cost (issue 6)."""
+"""Where a level's time goes: wall time per phase and peak memory, for error-against-cost."""
 import resource
 import time
 from contextlib import contextmanager

@@ -58,7 +58,7 @@ def test_fitted_log_factor_reaches_two_on_h2_ln_h():
 
 
 # --- the paper's table ----------------------------------------------------------------------------
-# SPEC.md "What the paper proves", row by row: (d, alpha, eps exponent p in eps = theta h^p, norm) -> rate
+# what the paper proves, case by case: (d, alpha, eps exponent p in eps = theta h^p, norm) -> rate
 SPEC_ROWS = [
     pytest.param(2, 2.0, 1.0, "H1", 1.0, False, id="any-alpha-h1-2d"),
     pytest.param(3, 3.0, 1.0, "H1", 1.0, False, id="any-alpha-h1-3d"),

@@ -1,4 +1,4 @@
-"""Faults around a run (issue 14): bad surroundings end with exit 2 and one line before any solve,
+"""Faults around a run: bad surroundings end with exit 2 and one line before any solve,
 leaving nothing behind; a full disk mid-study leaves rates.csv and study.h5 with the same levels and a
 status that says why; one run per study folder; SIGTERM ends gmsh meshing and the drawing of figures
 cleanly; Ctrl-C while starting prints no traceback; a closed stdout ends the printing quietly; PETSc

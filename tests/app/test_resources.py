@@ -94,7 +94,7 @@ def test_available_on_nodes_same_on_all_ranks():
     assert len(set(comm.allgather(have))) == 1 and have > 0
 
 
-# --- gmsh and file meshes: estimated before meshing (issue 14, class 3) ------------------------------
+# --- gmsh and file meshes: estimated before meshing -------------------------------------------------
 
 def gmsh_config(tmp_path, **mesh):
     mesh = dict({"kind": "gmsh", "geometry": "unit_square", "cache": str(tmp_path / "cache"), "refinements": None},

@@ -45,7 +45,7 @@ def test_positive_part_smooth_default_delta():
 
 @pytest.mark.parametrize("value", ["exact", "vertex", 6])
 def test_contact_quadrature(value):
-    assert load({}).contact_quadrature == "exact"  # issue 17: the exact integrals by default
+    assert load({}).contact_quadrature == "exact"  # the exact integrals by default
     cfg = load({"contact_quadrature": value})
     assert cfg.contact_quadrature == value and config.to_dict(cfg)["contact_quadrature"] == value
 
@@ -400,7 +400,7 @@ def test_defaults_are_the_dataclass_fields():
     cfg = config.loads(yaml.safe_dump(MINIMAL))
     assert (cfg.epsilon, cfg.positive_part, cfg.solver, cfg.output, cfg.verification) == \
         (config.Epsilon(), config.PositivePart(), config.Solver(), config.Output(), config.Verification())
-    # the values SPEC.md and README.md document
+    # the documented defaults
     assert (cfg.alpha, cfg.dimension, cfg.contact_quadrature, cfg.study_type) == (2.0, 2, "exact", "refinement")
     assert (cfg.solver.rtol, cfg.solver.max_it, cfg.epsilon.law, cfg.output.columns) == (1e-10, 50, "theta_h", "paper")
 
@@ -459,7 +459,7 @@ def test_did_you_mean_names_the_full_path(changes, message):
         load(changes)
 
 
-# --- input edges (issue 14, class 6) -------------------------------------------------------------
+# --- input edges --------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("delta", ["-1", "0", "0*h", "1e300", "1e-200", "h - 0.01", "log(h)", "sqrt(eps - 1e-3)"])
 def test_delta_must_be_positive_with_a_finite_square(delta):

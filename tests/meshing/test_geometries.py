@@ -247,4 +247,4 @@ def test_two_ranks_match_one_gmsh(shared_tmp, mesh):
         assert (p.n, p.dofs) == (s.n, s.dofs) and p.h == pytest.approx(s.h, rel=1e-14)
         assert p.extra == pytest.approx(s.extra, rel=ROUND_OFF)
         for norm in ("L2", "H1"):
-            assert p.errors[norm] == pytest.approx(s.errors[norm], rel=1e-8)  # issue 3's parallel tolerance
+            assert p.errors[norm] == pytest.approx(s.errors[norm], rel=1e-8)  # the parallel tolerance

@@ -1,4 +1,4 @@
-"""The Γ_C terms integrated beside UFL (issue 17): the exact P1 integrals against brute-force quadrature
+"""The Γ_C terms integrated beside UFL: the exact P1 integrals against brute-force quadrature
 on random and degenerate facets, the adaptive data term against mpmath, and a 2-rank run equal to 1 rank."""
 import warnings
 

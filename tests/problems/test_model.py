@@ -1,4 +1,4 @@
-"""The weak form's Γ_C terms (issue 17) on a closed-form case: u_h = x - 0.3 on the bottom face, whose zero
+"""The weak form's Γ_C terms on a closed-form case: u_h = x - 0.3 on the bottom face, whose zero
 x = 0.3 lies inside a facet of N = 4, so that (1/eps)∫_Γc [u_h]_+^alpha v has exact values in closed form."""
 import numpy as np
 import pytest
@@ -52,7 +52,7 @@ def test_vertex_rule_is_the_trapezoid_rule(make_config):
 
 def test_gauss_degree_stays_in_ufl(make_config):
     forms, _ = level(make_config, contact_quadrature=6)
-    assert forms.contact is None  # the whole weak form in UFL, as before issue 17
+    assert forms.contact is None  # the whole weak form in UFL
     assert forms.ds_c.metadata() == {"quadrature_degree": 6}
     assert any(itg.integral_type() == "exterior_facet" for itg in forms.split.J_varying.integrals())
 

@@ -11,7 +11,7 @@ from signorini_cli.problems import compliance, vi
 from signorini_cli.record import results
 from conftest import U_SIGNORINI
 
-RTOL = 1e-8  # issue 10: the VI under mpirun -n 2 reproduces the serial errors to 1e-8 relative
+RTOL = 1e-8  # the VI under mpirun -n 2 reproduces the serial errors to 1e-8 relative
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""rates.csv and study.h5: SPEC columns, written after every level, readable when cut short."""
+"""rates.csv and study.h5: the leading columns, written after every level, readable when cut short."""
 import csv
 import re
 

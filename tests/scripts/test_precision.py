@@ -1,4 +1,4 @@
-"""Solved as precisely as measured (issue 17, item 5): with default settings every error column equals a
+"""Solved as precisely as measured: with default settings every error column equals a
 tight solve's to 1e-6 relative, on the two studies the issue found off by 2.7e-5 and 6.5e-5 (coarse
 levels); scripts/precision.py (`make precision`) runs the same check on every shipped config."""
 import runpy

@@ -44,7 +44,7 @@ def test_rule_gaps_by_h_over_eps():
 
 def test_rules_section_checks_the_independent_figures():
     found = found_rules(0.0)
-    # issue 17's figures at 2-D, α = 1, ε = 1e-8: 5.800452e-3 (N = 16), 4.055548e-4 (N = 64)
+    # the contact-rule comparison's figures at 2-D, α = 1, ε = 1e-8: 5.800452e-3 (N = 16), 4.055548e-4 (N = 64)
     found[(2, "1.0", "1.0e-8", "exact")] = [level(16, "1.0e-8", 5.800452e-3), level(64, "1.0e-8", 4.1e-4)]
     text = stability["rules_section"](found)
     assert "N = 16: 5.800452e-03 against 5.800452e-03 (relative difference 0.0e+00)" in text

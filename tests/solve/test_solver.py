@@ -80,7 +80,7 @@ TEST = solver.SuccessTest(rtol=1e-10, atol=1e-12, stol=1e-8, max_it=50, scale=2.
 
 
 def test_success_residual_relative_to_load_not_to_initial_residual():
-    # from u = 0 with eps = 1e-8 the initial residual is ~1e7 (issue 5): a relative test with
+    # from u = 0 with eps = 1e-8 the initial residual is ~1e7: a relative test with
     # rtol 1e-10 would pass at 1e-3; this one wants 1e-10 * the load's norm (2e-10)
     assert TEST(3, 1e-3, unorm=5.0) is None
     assert TEST(3, 1.9e-10, unorm=5.0) == solver.CONVERGED_RESIDUAL
@@ -348,7 +348,7 @@ def test_varying_rows_are_the_contact_rows(make_config, monkeypatch):
         newton.destroy()
 
 
-# --- the Γ_C terms assembled beside UFL (issue 17) ------------------------------------------------------
+# --- the Γ_C terms assembled beside UFL ---------------------------------------------------------------
 
 @pytest.mark.parametrize("alpha", [1.5, 2.0, 3.0])
 @pytest.mark.parametrize("dimension", [2, 3])
@@ -386,7 +386,7 @@ FIGURE = {"alpha": 1.0, "epsilon": {"law": "constant", "theta": 1e-8}, "mesh": {
 
 
 def test_default_settings_give_the_exactly_integrated_p1_solution(make_config):
-    # issue 17: 2-D, u_ex = sin(2 pi x)(1-y)^2, alpha = 1, eps = 1e-8, exact positive part, the contact term
+    # 2-D, u_ex = sin(2 pi x)(1-y)^2, alpha = 1, eps = 1e-8, exact positive part, the contact term
     # integrated exactly: L2 = 5.800452e-3 (N = 16) and 4.055548e-4 (N = 64) from scikit-fem and NGSolve
     # (agreeing to 5e-12); 1e-6 relative is the issue's requirement (the figures' 7 digits)
     levels = studies.run_study(make_config(**FIGURE), comm=MPI.COMM_SELF)

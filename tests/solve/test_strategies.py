@@ -20,7 +20,7 @@ from conftest import BASE, merge
 P1_EXACT = {"problem": {"exact": "0.5*(1-y) + 0.25*x"}, "mesh": {"refinements": [4, 8, 16]},
             "solver": {"stol": 0, "polish": 0}}
 # alpha = 1, eps = 1e-8: plain Newton from 0 stalls in its line search at N = 64 (DIVERGED_LINE_SEARCH
-# after 45 iterations, residual 0.19), as issue 5 reports; N = 32 and 128 converge (8 and 23 iterations)
+# after 45 iterations, residual 0.19); N = 32 and 128 converge (8 and 23 iterations)
 STIFF = {"alpha": 1.0, "epsilon": {"law": "constant", "theta": 1e-8}}
 
 

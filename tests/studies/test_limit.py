@@ -20,7 +20,7 @@ SWEEP = {"study_type": "epsilon_sweep", "alpha": None, "epsilon": None,
          "problem": {"exact": U_SIGNORINI, "exact_solves": "signorini"},
          "mesh": {"refinements": [8]},
          "limit": {"alpha": [1, 2, 3], "epsilon": [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6]}}
-RTOL = 1e-8  # issue 10: 2 ranks reproduce the serial numbers to 1e-8 relative
+RTOL = 1e-8  # 2 ranks reproduce the serial numbers to 1e-8 relative
 
 
 def sympy_solution(cfg):

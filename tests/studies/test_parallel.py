@@ -13,7 +13,7 @@ from mpi4py import MPI
 from signorini_cli import config, studies
 from conftest import BASE, merge
 
-RTOL = 1e-8  # issue 3: serial and parallel errors agree to 1e-8 relative (solver tolerance 1e-10)
+RTOL = 1e-8  # serial and parallel errors agree to 1e-8 relative (solver tolerance 1e-10)
 CASES = [
     pytest.param({}, id="2d"),
     pytest.param({"dimension": 3, "mesh": {"kind": "unit_cube", "refinements": [4, 6]},

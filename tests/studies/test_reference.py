@@ -14,7 +14,7 @@ from signorini_cli.studies import reference, stability
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
-RTOL = 1e-8  # issue 4: a data-only scene agrees to 1e-8 relative on 2 ranks (solver tolerance 1e-10)
+RTOL = 1e-8  # a data-only scene agrees to 1e-8 relative on 2 ranks (solver tolerance 1e-10)
 
 
 def p1(domain, expression):

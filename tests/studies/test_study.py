@@ -34,7 +34,7 @@ def test_rates_3d_alpha2_theta_h(make_config):
 
 def test_demo_level_matches_independent_value(make_config):
     (level,) = studies.run_study(make_config(mesh={"refinements": [64]}))
-    # issue 3: an independent implementation of the same discretisation gives L2 ≈ 4.044e-4 and
+    # an independent implementation of the same discretisation gives L2 ≈ 4.044e-4 and
     # H1 seminorm ≈ 7.315e-2 at N = 64; 4 significant digits = half a unit in the 4th digit
     assert level.errors["L2"] == pytest.approx(4.044e-4, abs=0.0005e-4)
     assert level.errors["H1"] == pytest.approx(7.315e-2, abs=0.0005e-2)
@@ -55,7 +55,7 @@ def test_stop_on_failure_ends_study(make_config):
     assert levels[0].outcome.reason == "DIVERGED_MAX_IT"
 
 
-# --- what a finer level holds of the coarser one (issue 15: memory per dof) ---------------------------
+# --- what a finer level holds of the coarser one (memory per dof) -------------------------------------------
 
 def test_finer_level_solves_without_the_coarser_mesh(make_config, monkeypatch):
     # nested iteration: once level 2 has taken its initial guess, nothing holds level 1's mesh any more

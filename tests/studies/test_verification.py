@@ -30,7 +30,7 @@ def test_manufactured_study_gamma_c_columns(make_config):
     header = list(rows[0])
     assert header[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
     measured = [c for c in header if not results.is_timing(c)]  # the t_* timing columns come last
-    assert measured[-len(GAMMA_C):] == GAMMA_C  # after the SPEC and solver columns, in this order
+    assert measured[-len(GAMMA_C):] == GAMMA_C  # after the leading and solver columns, in this order
     assert rows[0]["rate_L2_gc"] == "" and rows[0]["L2_gc"] != ""
     last = levels[-1].extra
     # N=16->32 observed L2_gc 1.97, pos_gc_scaled 3.45, energy_err 0.995 (2026-11 run); proven: none,

@@ -1,4 +1,4 @@
-"""Per-phase timings, work-precision data and the speed work (issue 6)."""
+"""Per-phase timings, work-precision data and the speed work."""
 import csv
 import time
 
