@@ -25,9 +25,6 @@ SIGNALS = (signal.SIGINT, signal.SIGTERM)
 # reports it alone (its MPI abort ends the others first). Below Open MPI's 1 s between the SIGTERM
 # mpirun forwards on Ctrl-C and its SIGKILL.
 GRACE_S = 0.5
-# Testing hook, documented in docs/guide/faults.md: SIGNORINI_TEST_FAIL=RANK:LEVEL makes that rank raise as that
-# level starts, like a crash inside a level (tests/app/test_guard.py: one rank of two fails).
-TEST_FAIL = "SIGNORINI_TEST_FAIL"
 CRASH_STATUS = 3  # a bug (an exception that is no bad input): its traceback is printed, the status kept
 BAD_SURROUNDINGS = 2  # as bad input: the results could not be written (a full disk, a folder gone read-only)
 
@@ -190,7 +187,6 @@ class Watch:
                 timings = self.levels[-1].timings
                 timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
                 self.recorded = len(self.levels)
-        fault_hook(self.solved, self.comm)
         return rows
 
     @property
@@ -267,13 +263,6 @@ def writing(folder):
         yield
     except OSError as err:
         raise WriteFailed(folder, err) from err
-
-
-def fault_hook(level, comm):
-    """Testing hook: with SIGNORINI_TEST_FAIL=RANK:LEVEL set, that rank raises as that level starts."""
-    spec = os.environ.get(TEST_FAIL)
-    if spec and spec == f"{comm.rank}:{level}":
-        raise RuntimeError(f"{TEST_FAIL}={spec}: rank {comm.rank} fails at the start of level {level}")
 
 
 # --- one run per study folder --------------------------------------------------------------------

@@ -86,8 +86,3 @@ REFERENCE_NORMS = tuple(f"{norm}_ref" for norm in ERROR_NORMS) + next(m.columns 
 def defaults(scene):
     """The measure keys a scene ("exact" or "data") takes unless verification.measures says otherwise."""
     return tuple(m.key for m in MEASURES if scene in m.default)
-
-
-def measure_of(column):
-    """The Measure that fills `column`, or None (L2, H1)."""
-    return next((m for m in MEASURES if column in m.columns), None)

@@ -13,9 +13,7 @@ from ..config import ConfigError, names
 from ..record import results
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
-COLUMN_SETS = ("paper", "all")  # output.columns / report --columns, besides a list of columns
 PAPER_LEADING = ("N", "h", "epsilon", "newton_its")  # what a paper shows before the errors
-TERMINAL_WIDTH = 120
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
 FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})

@@ -20,11 +20,13 @@ from signorini_cli.studies import refinement as refinement_study
 from signorini_cli.app import cli, guard
 from signorini_cli.record import results
 from signorini_cli.solve import solver
+import failing_run
 from conftest import BASE, merge
 
 LEVELS = [4, 8, 12, 16]
 LONG_LEVELS = [4, 8, 16, 32, 48, 64, 80]  # ~1 s once started, most of it in the last three levels
 SIGNORINI = str(Path(sys.executable).with_name("signorini"))
+FAILING_RUN = failing_run.__file__
 MPI_ENV = dict(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1")
 
@@ -152,13 +154,13 @@ def test_signal_while_writing_waits_for_the_level(tmp_path, monkeypatch):
 def test_crash_inside_level_records_failure(whole, tmp_path, monkeypatch, level):
     """A bug keeps its traceback (the exception propagates) but the status says where it happened."""
     config, out = write_config(tmp_path), str(tmp_path / "out")
-    monkeypatch.setenv(guard.TEST_FAIL, f"0:{level}")
+    solve_level = refinement_study.solve_level
+    monkeypatch.setattr(refinement_study, "solve_level", failing_run.failing(solve_level, 0, level))
     with pytest.raises(RuntimeError, match=f"rank 0 fails at the start of level {level}"):
         cli.main(["run", config, "--output", out])
-    assert status(out) == (f"failed at level {level}: RuntimeError: SIGNORINI_TEST_FAIL=0:{level}: rank 0 "
-                           f"fails at the start of level {level}")
+    assert status(out) == f"failed at level {level}: RuntimeError: rank 0 fails at the start of level {level}"
     assert len(table(out)) == level
-    monkeypatch.delenv(guard.TEST_FAIL)
+    monkeypatch.setattr(refinement_study, "solve_level", solve_level)
     assert cli.main(["run", config, "--output", out, "--resume"]) == cli.EXIT_OK
     assert table(out) == whole
 
@@ -228,22 +230,20 @@ def test_one_rank_fails_both_end(tmp_path):
     """Rank 1 alone raises as level 1 starts, while rank 0 goes on into level 1's collectives: the MPI
     abort ends both (subprocess timeout: 60 s; it takes ~4 s here) with the traceback printed once."""
     config, out = write_config(tmp_path), tmp_path / "out"
-    env = dict(os.environ, **MPI_ENV, **{guard.TEST_FAIL: "1:1"})
-    done = subprocess.run(["mpirun", "-q", "-n", "2", SIGNORINI, "run", config, "--output", str(out)],
-                          capture_output=True, text=True, env=env, timeout=60)
+    env = dict(os.environ, **MPI_ENV)
+    done = subprocess.run(["mpirun", "-q", "-n", "2", sys.executable, FAILING_RUN, "1", "1", "run", config,
+                           "--output", str(out)], capture_output=True, text=True, env=env, timeout=60)
     assert done.returncode == guard.CRASH_STATUS  # MPI_Abort's code, through mpirun
     assert done.stderr.count("Traceback") == 1, done.stderr
-    assert "signorini: rank 1 failed: RuntimeError: SIGNORINI_TEST_FAIL=1:1" in done.stderr
-    assert status(out) == ("failed at level 1: RuntimeError: SIGNORINI_TEST_FAIL=1:1: rank 1 fails at the "
-                           "start of level 1")
+    assert "signorini: rank 1 failed: RuntimeError: rank 1 fails at the start of level 1" in done.stderr
+    assert status(out) == "failed at level 1: RuntimeError: rank 1 fails at the start of level 1"
     assert [row["level"] for row in table(out)] == ["0"]
 
 
 def test_crash_exits_3_with_one_traceback(tmp_path):
     """The console script keeps a bug's traceback and exits 3, apart from 1 (not converged) and 2 (bad input)."""
     config, out = write_config(tmp_path), tmp_path / "out"
-    env = dict(os.environ, **{guard.TEST_FAIL: "0:1"})
-    done = subprocess.run([SIGNORINI, "run", config, "--output", str(out)], capture_output=True, text=True,
-                          env=env, timeout=120)
+    done = subprocess.run([sys.executable, FAILING_RUN, "0", "1", "run", config, "--output", str(out)],
+                          capture_output=True, text=True, timeout=120)
     assert done.returncode == guard.CRASH_STATUS and done.stderr.count("Traceback") == 1, done.stderr
-    assert status(out).startswith("failed at level 1: RuntimeError: SIGNORINI_TEST_FAIL=0:1")
+    assert status(out) == "failed at level 1: RuntimeError: rank 0 fails at the start of level 1"
