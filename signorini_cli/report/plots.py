@@ -39,9 +39,11 @@ class Layout:
     per_norm: bool = False
 
 
-def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per_norm=False, shown=None):
+def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per_norm=False, shown=None,
+              suffix=""):
     """convergence, work_precision and newton (and convergence_<norm> with per_norm), each as PNG and PDF
-    in `folder`; the paths written. `shown`: the norms of the convergence figure (default: all)."""
+    in `folder`, `suffix` added to their names; the paths written. `shown`: the plotted norms (default:
+    all)."""
     layout = Layout(width or WIDTH_PT, per_norm)
     curves = error_curves(rows)
     shown = [n for n in (shown or curves) if n in curves]
@@ -52,7 +54,8 @@ def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per
         if per_norm:
             figures.update({f"convergence_{n}": convergence(rows, proven, title, fit_levels, layout.width, [n])
                             for n in curves})
-        return [path for name, fig in figures.items() if fig is not None for path in save(fig, folder, name)]
+        return [path for name, fig in figures.items() if fig is not None
+                for path in save(fig, folder, name + suffix)]
 
 
 def write_comparison(studies, folder, fit_levels=3, width=None):

@@ -11,6 +11,7 @@ from ..analysis.rates import fitted
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
 from ..record import results
+from . import latex
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
 COLUMN_SETS = ("paper", "all")  # output.columns / report --columns, besides a list of columns
@@ -53,7 +54,9 @@ def choose(rows, columns="paper", proven=None):
         return [c for c in rows[0] if c not in measured and not c.startswith("rate_") and c != "reason"], measured
     if columns == "paper":  # h goes when N gives it (h = c/N on every level): the caption says c
         lead = [c for c in PAPER_LEADING if c in rows[0] and not (c == "h" and h_per_N(rows))]
-        return lead, paper_norms(measured, proven or {})
+        if "epsilon" in lead and all(row["epsilon"] == 0 for row in rows):  # the Signorini problem: no ε,
+            lead = [c for c in lead if c != "epsilon"] + [c for c in ("contact_measure",) if c in rows[0]]
+        return lead, paper_norms(measured, proven or {})  # its contact set's measure instead
     unknown = [c for c in columns if c not in rows[0]]
     if unknown:
         raise ConfigError("output.columns", f"{unknown[0]!r} is not a column of this study; it has "
@@ -64,7 +67,8 @@ def choose(rows, columns="paper", proven=None):
 def paper_norms(measured, proven):
     """The measured norms with a proven rate, pos_gc_scaled left out beside pos_gc (a power of it,
     Corollary 3.2 ii); with no proven rate known, the first two measured (L2, H1)."""
-    shown = [n for n in measured if n in proven and not (n == "pos_gc_scaled" and "pos_gc" in proven)]
+    shown = [n for n in measured if n in proven and not (n.startswith("pos_gc_scaled")
+                                                          and n.replace("_scaled", "") in proven)]
     return shown or measured[:2]
 
 
@@ -159,7 +163,7 @@ def markdown_table(rows, digits=3, columns="paper", proven=None):
                                                    for k in ("error", "rate")]
     lines = ["| " + " | ".join(header) + " |", "|" + "---:|" * len(header)]
     for row in rows:
-        cells = [_paper_cell(c, row, digits, _scientific, "–") for c in lead]
+        cells = [_paper_cell(c, row, digits, _scientific, "–", _markdown_text) for c in lead]
         for norm in shown:
             cells += [_paper_cell(norm, row, digits, _scientific, "–"), _rate(row.get(f"rate_{norm}"), "–")]
         lines.append("| " + " | ".join(cells) + " |")
@@ -167,52 +171,111 @@ def markdown_table(rows, digits=3, columns="paper", proven=None):
     return "\n".join(lines + ([""] + notes if notes else [])) + "\n"  # a blank line ends the table
 
 
-def latex_table(rows, digits=3, caption="", columns="paper", proven=None):
-    """The rate table as a booktabs `table` float (needs \\usepackage{booktabs}): "error | rate" under
-    each norm's short name, the definitions in the caption; numbers as 2.303e-2."""
+def latex_table(rows, digits=3, caption="", columns="paper", proven=None, key=None):
+    """The rate table as a booktabs `table` float (needs \\usepackage{booktabs}, said in its first line):
+    "error | rate" under each norm's short name, numbers as $2.303\\times10^{-2}$, columns N or the
+    caption already gives left out, a layout that fits \\textwidth (latex.table), a \\label `key`."""
     lead, shown = choose(rows, columns, proven)
-    first = len(lead) + 1
-    lines = [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{3pt}",
-             r"\caption{" + _caption(caption, lead, shown, rows) + "}",
-             r"\begin{tabular}{" + "r" * len(lead) + "rr" * len(shown) + "}", r"\toprule"]
-    if shown:
-        lines.append(" & ".join([""] * len(lead) + [rf"\multicolumn{{2}}{{c}}{{{names.name(n).tex}}}"
-                                                     for n in shown]) + r" \\")
-        lines.append(" ".join(rf"\cmidrule(lr){{{first + 2 * i}-{first + 2 * i + 1}}}" for i in range(len(shown))))
-    lines += [" & ".join([names.name(c).tex for c in lead] + ["error", "rate"] * len(shown)) + r" \\",
-              r"\midrule"]
-    for row in rows:
-        cells = [_paper_cell(c, row, digits, _latex_number, "--") for c in lead]
-        for norm in shown:
-            cells += [_paper_cell(norm, row, digits, _latex_number, "--"), _rate(row.get(f"rate_{norm}"), "--")]
-        lines.append(" & ".join(cells) + r" \\")
-    lines += [r"\bottomrule", r"\end{tabular}", r"\end{table}"]
-    return "\n".join(lines) + "\n"
+    lead, given = redundant(rows, lead)
+    cells = [(_header(c), [_paper_cell(c, row, digits, latex.number, "--", _latex_text) for row in rows])
+             for c in lead]
+    for norm in shown:
+        cells += [("error", [_paper_cell(norm, row, digits, latex.number, "--") for row in rows]),
+                  ("rate", [_rate(row.get(f"rate_{norm}"), "--", latex.rate) for row in rows])]
+    text = latex.table(cells, [(_header(n), 2) for n in shown], _caption(caption, lead, shown, rows, given),
+                       key or latex.label("rates"), len(rows))
+    return "% rate table written by signorini; needs \\usepackage{booktabs}\n" + text
 
 
-def _caption(caption, lead, shown, rows):
-    """The caption: the study, then what each short name means, the rate, and the failed levels."""
-    defined = [f"{names.name(c).tex}: {names.name(c).definition}" for c in lead + shown]
-    if "N" in lead and "h" not in lead and h_per_N(rows):
-        defined.insert(1, f"$h = {h_per_N(rows):.4g}/N$, the largest cell diameter")
-    text = (_tex_escape(caption) + ". " if caption else "") + "; ".join(
-        defined + ([RATE_DEFINITION] if shown else [])) + "."
-    return " ".join([text] + [_tex_escape(line) for line in _failures(rows)])
+def redundant(rows, lead):
+    """(lead without the columns the caption can state, those statements as LaTeX): h when N gives it
+    (stated whenever N is shown), ε when it equals h or is one value on every level."""
+    given, law = [], h_law(rows) if "N" in lead else None
+    if law is not None:
+        lead, given = [c for c in lead if c != "h"], [_h_statement(*law)]
+    eps = [row.get("epsilon") for row in rows]
+    if "epsilon" in lead and eps and all(isinstance(e, (int, float)) for e in eps):
+        if all(math.isclose(e, row["h"], rel_tol=1e-9) for e, row in zip(eps, rows)):
+            lead, given = [c for c in lead if c != "epsilon"], given + [r"$\varepsilon = h$"]
+        elif max(eps) == min(eps):
+            lead, given = [c for c in lead if c != "epsilon"], given + [rf"$\varepsilon = {latex.constant(eps[0])}$"]
+    return lead, given
 
 
-# plain text (a study's name and description) in LaTeX: the specials escaped, the usual Unicode as math
-TEX_TEXT = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-            "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
-            "α": r"$\alpha$", "ε": r"$\varepsilon$", "θ": r"$\theta$", "Γ": r"$\Gamma$", "π": r"$\pi$",
-            "δ": r"$\delta$", "Ω": r"$\Omega$", "≥": r"$\geq$", "≤": r"$\leq$", "→": r"$\to$", "−": "-",
-            "×": r"$\times$", "²": r"$^2$", "³": r"$^3$", "·": r"$\cdot$", "–": "--", "—": "---"}
+def h_law(rows):
+    """(c, k) when h = c N^{-1/k} on every level (k = 1: N cells per side; k = d: N cells of a uniformly
+    refined mesh), else None."""
+    if len(rows) < 2 or not all(row.get("h") and row.get("N") for row in rows):
+        return None
+    for k in (1, 2, 3):
+        products = [row["h"] * row["N"] ** (1 / k) for row in rows]
+        if max(products) - min(products) <= 1e-9 * products[0]:
+            return products[0], k
+    return None
 
 
-def _tex_escape(text):
-    return "".join(TEX_TEXT.get(char, char if char.isascii() else "?") for char in text)
+def _h_statement(c, k):
+    """h = c/N with N cells per side, or h = c N^{-1/k} with N cells: c as √m when it is one."""
+    root = round(c * c)
+    value = (rf"\sqrt{{{root}}}" if math.isclose(c * c, root, rel_tol=1e-9) and not c.is_integer()
+             else latex.constant(float(f"{c:.4g}")))
+    if k == 1:
+        return rf"$N$: cells per side, $h = {value}/N$ the largest cell diameter"
+    return rf"$N$: the number of cells, $h = {value}\,N^{{-1/{k}}}$ the largest cell diameter"
 
 
-def _paper_cell(column, row, digits, scientific, missing):
+def _header(column):
+    """A column's LaTeX header: the short name of a known column, else its own name escaped."""
+    known = column in names.NORMS or column in names.COLUMNS or (column.endswith("_ref") and column[:-4] in names.NORMS)
+    return names.name(column).tex if known else r"\texttt{" + latex.escape(column) + "}"
+
+
+def _definition(column):
+    known = column in names.NORMS or column in names.COLUMNS or (column.endswith("_ref") and column[:-4] in names.NORMS)
+    return f"{names.name(column).tex}: {names.name(column).definition}" if known else None
+
+
+def _caption(caption, lead, shown, rows, given=()):
+    """The caption: the study (LaTeX, see caption_of), what the table leaves out, what each short name
+    means, the rate, and the failed levels."""
+    stated = " ".join(given)
+    defined = [d for c in lead + shown if (d := _definition(c)) and not stated.startswith(d.split(":")[0] + ":")]
+    given = [g for g in given if g not in caption]  # ε = h: said with the study already
+    text = (caption + ". " if caption else "") + "; ".join(
+        list(given) + defined + ([RATE_DEFINITION] if shown else [])) + "."
+    return " ".join([text] + [latex.escape(line) for line in _failures(rows)])
+
+
+def caption_of(name, cfg=None):
+    """The study in a caption, from its config's fields: d, α, ε as a formula, the exact solution (or the
+    data) typeset, Γ_C; LaTeX with every user-given text escaped."""
+    text = f"Study {latex.escape(name)}"
+    if cfg is None:
+        return text
+    parts = [f"$d = {cfg.dimension}$"]
+    if cfg.study_type == "signorini":
+        parts.append(r"the Signorini variational inequality ($\varepsilon = 0$)")
+    else:
+        theta = "" if cfg.epsilon.theta == 1 and cfg.epsilon.law != "constant" else latex.constant(cfg.epsilon.theta)
+        law = config.LAWS[cfg.epsilon.law].tex.format(p=cfg.epsilon.p).strip()
+        parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$".replace("{}", "")]
+    parts += [_problem(cfg.problem), r"$\Gamma_C$: \texttt{" + latex.escape(cfg.contact) + "}"]
+    if cfg.mesh.kind == "gmsh":
+        parts.append(r"gmsh geometry \texttt{" + latex.escape(Path(cfg.mesh.geometry).stem) + "}")
+    return f"{text}: " + ", ".join(parts)
+
+
+def _problem(problem):
+    """$u = ...$ (manufactured), or the data $f = ...$ (and $g$); a formula too long for a caption named."""
+    given = [("u", problem.exact)] if problem.exact is not None else [("f", problem.f), ("g", problem.g)]
+    typeset = [(symbol, latex.expression(e.tree)) for symbol, e in given if e is not None]
+    if any(len(tex) > 160 for _, tex in typeset):  # unbreakable in a caption line
+        return "the solution or data as written in the study's config"
+    words = "exact solution" if problem.exact is not None else "data"
+    return words + " " + ", ".join(f"${symbol} = {tex}$" for symbol, tex in typeset)
+
+
+def _paper_cell(column, row, digits, scientific, missing, text=str):
     value = row.get(column)
     if column == "newton_its" and not row["converged"]:
         return f"{value} (failed)"
@@ -220,21 +283,27 @@ def _paper_cell(column, row, digits, scientific, missing):
         return missing
     if isinstance(value, bool):
         return "yes" if value else "no"
+    if isinstance(value, str):
+        return text(value)
     return scientific(value, digits) if isinstance(value, float) else str(value)
 
 
-def _rate(value, missing):
-    return missing if value is None else f"{value:.2f}"
+def _rate(value, missing, form="{:.2f}".format):
+    return missing if value is None else form(value)
 
 
 def _scientific(value, digits):
     return f"{value:.{digits}e}"
 
 
-def _latex_number(value, digits):
-    """2.303e-2: the narrowest notation a reader knows ($m \\cdot 10^{k}$ would not fit the page)."""
-    mantissa, exponent = f"{value:.{digits}e}".split("e")
-    return f"{mantissa}e{int(exponent)}"
+def _markdown_text(value):
+    """A text cell in a Markdown table: a | would end the cell."""
+    return value.replace("|", "\\|")
+
+
+def _latex_text(value):
+    """A text cell in LaTeX, escaped, cut at latex.MAX_TEXT characters (a table column, not a page)."""
+    return latex.escape(value if len(value) <= latex.MAX_TEXT else value[:latex.MAX_TEXT - 3] + "...")
 
 
 def _failures(rows, end="."):
@@ -375,21 +444,24 @@ def _csv_value(text):
 
 # --- everything a study leaves besides rates.csv and study.h5 -----------------------------------
 
-def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None):
-    """rates.md, rates.tex and (if `plots`) the figures of `study` into `folder`; the paths written.
-    `columns` as output.columns (default: the config's, else "paper"); `figure`: plots.Layout options."""
+def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None, suffix=""):
+    """rates<suffix>.md, rates<suffix>.tex and (if `plots`) the figures of `study` (their names with
+    `suffix` too) into `folder`; the paths written. `columns` as output.columns (default: the config's,
+    else "paper"); given, they also choose the plotted norms. `figure`: plots.Layout options."""
     folder = Path(folder or study.folder)
     folder.mkdir(parents=True, exist_ok=True)
-    caption = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
     chosen, proven = _columns_of(cfg, columns), proven_rates(cfg)
-    written = [folder / "rates.md", folder / "rates.tex"]
-    written[0].write_text(f"<!-- {caption} -->\n" + markdown_table(study.rows, digits, chosen, proven))
-    written[1].write_text(latex_table(study.rows, digits, caption, chosen, proven))
+    written = [folder / f"rates{suffix}.md", folder / f"rates{suffix}.tex"]
+    description = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
+    written[0].write_text(f"<!-- {description} -->\n" + markdown_table(study.rows, digits, chosen, proven))
+    written[1].write_text(latex_table(study.rows, digits, caption_of(study.name, cfg), chosen, proven,
+                                      key=latex.label(study.name, suffix)))
     if plots and study.rows:
         fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
         figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))
+        shown = choose(study.rows, chosen, proven)[1] if chosen != "paper" else None
         written += plotting.write_all(study.rows, folder, proven=proven, title=title(study, cfg),
-                                      fit_levels=fit_levels, **figure)
+                                      fit_levels=fit_levels, shown=shown, suffix=suffix, **figure)
     return written
 
 

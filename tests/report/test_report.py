@@ -34,18 +34,22 @@ def test_markdown_table_known():
 
 
 def test_latex_table_grouped_with_definitions_in_caption():
-    lines = tables.latex_table(KNOWN[:2], digits=3, caption="Study t").splitlines()
-    assert lines[:3] == [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{3pt}"]
-    caption = lines[3]
-    assert caption.startswith(r"\caption{Study t. $N$: cells per side") and "$h = 2/N$" in caption
+    lines = tables.latex_table(KNOWN[:2], digits=3, caption="Study t", key="tab:t").splitlines()
+    assert lines[0].endswith(r"needs \usepackage{booktabs}") and lines[1] == r"% layout: fits \textwidth at the normal size"
+    assert lines[2:4] == [r"\begin{table}", r"\centering"]
+    caption = lines[4]
+    # h = 2/N and ε = h on every level: the caption says so, the table shows neither column
+    assert caption.startswith(r"\caption{Study t. $N$: cells per side, $h = 2/N$ the largest cell diameter; "
+                              r"$\varepsilon = h$; its: Newton iterations")
     assert r"$L^2$: $\|u-u_h\|_{L^2(\Omega)}$" in caption and caption.endswith("successive levels.}")
-    assert lines[4:] == [
-        r"\begin{tabular}{rrrrrrr}", r"\toprule",
-        r" &  &  & \multicolumn{2}{c}{$L^2$} & \multicolumn{2}{c}{$H^1$} \\",
-        r"\cmidrule(lr){4-5} \cmidrule(lr){6-7}",
-        r"$N$ & $\varepsilon$ & its & error & rate & error & rate \\", r"\midrule",
-        r"8 & 2.500e-1 & 5 & 1.000e-2 & -- & 5.000e-1 & -- \\",
-        r"16 & 1.250e-1 & 5 & 2.500e-3 & 2.00 & 2.500e-1 & 1.00 \\",
+    assert lines[5:] == [
+        r"\label{tab:t}", r"\setlength{\tabcolsep}{3pt}",
+        r"\begin{tabular}{rrrrrr}", r"\toprule",
+        r" &  & \multicolumn{2}{c}{$L^2$} & \multicolumn{2}{c}{$H^1$} \\",
+        r"\cmidrule(lr){3-4} \cmidrule(lr){5-6}",
+        r"$N$ & its & error & rate & error & rate \\", r"\midrule",
+        r"8 & 5 & $1.000\times10^{-2}$ & -- & $5.000\times10^{-1}$ & -- \\",
+        r"16 & 5 & $2.500\times10^{-3}$ & 2.00 & $2.500\times10^{-1}$ & 1.00 \\",
         r"\bottomrule", r"\end{tabular}", r"\end{table}"]
 
 
