@@ -149,9 +149,14 @@ def compare(args):
         if args.label and len(args.label) != len(studies):
             raise ConfigError("--label", f"give one per study: {len(studies)} studies, {len(args.label)} labels")
         labels = args.label or _labels(studies)
+        twice = next((label for label in labels if labels.count(label) > 1), None)
+        if twice is not None:  # one label would stand for two studies in the legend and the table
+            raise ConfigError("--label", f"{twice!r} names two of the studies; give each its own label")
         folder = Path(args.output) if args.output else studies[0].folder.parent / "compare"
         rows = dict(zip(labels, (study.rows for study in studies)))
-        written = plots.write_comparison(rows, folder) if MPI.COMM_WORLD.rank == 0 else []
+        written = []
+        if MPI.COMM_WORLD.rank == 0:
+            written = tables.write_comparison(rows, folder) + plots.write_comparison(rows, folder)
     except (ConfigError, OSError) as err:
         return fail("compare", err)
     if MPI.COMM_WORLD.rank == 0:

@@ -106,9 +106,32 @@ def format_table(rows, cfg=None, columns=None):
     return "\n".join(_aligned(groups) + _failures(rows, end=""))
 
 
-def _aligned(groups):
+def _aligned(groups, width=TERMINAL_WIDTH):
     """Lines of a right-aligned table whose column groups [(title, [(header, cells)])] get their title
-    centred above them (a title line only when some group has one)."""
+    centred above them; wider than `width`, it is wrapped into blocks that repeat the first column."""
+    units = [(title, [column]) for title, columns in groups if not title for column in columns]
+    units += [group for group in groups if group[0]]
+    key = units[0]
+    blocks = [[]]
+    for unit in units:
+        if blocks[-1] and max(map(len, _block(_merged(blocks[-1] + [unit])))) > width:
+            blocks.append([key])
+        blocks[-1].append(unit)
+    return [line for k, block in enumerate(blocks) for line in ([""] if k else []) + _block(_merged(block))]
+
+
+def _merged(units):
+    """Neighbouring untitled single columns as one group again (two spaces apart, not four)."""
+    groups = []
+    for title, columns in units:
+        if not title and groups and not groups[-1][0]:
+            groups[-1] = ("", groups[-1][1] + columns)
+        else:
+            groups.append((title, columns))
+    return groups
+
+
+def _block(groups):
     widths = [[max(len(header), *map(len, cells)) for header, cells in columns] for _, columns in groups]
     spans = [sum(w) + 2 * (len(w) - 1) for w in widths]
     spans = [max(span, len(title)) for span, (title, _) in zip(spans, groups)]
@@ -136,21 +159,77 @@ def _format(column, value):
     return str(value)
 
 
-def summary_table(studies, fit_levels=FIT_LEVELS):
-    """One line per study ({label: rows}): levels, finest h, per norm (under its name) the finest error
-    and the slope fitted over the last `fit_levels` levels, total wall time."""
+def comparison(studies, fit_levels=FIT_LEVELS):
+    """One row per study ({label: rows}): levels, finest converged h, total wall time, per norm the
+    finest error (<norm>_finest) and the slope fitted over the last `fit_levels` levels (<norm>_fit)."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
-    ok = {label: [row for row in rows if row["converged"]] for label, rows in studies.items()}
-    lead = [("study", list(studies)), ("levels", [str(len(rows)) for rows in studies.values()]),
-            ("finest h", [f"{rows[-1]['h']:.3e}" if rows else "-" for rows in ok.values()]),
-            ("time_s", [f"{sum(row['time_s'] or 0.0 for row in rows):.2f}" for rows in studies.values()])]
-    groups = [("", lead)]
-    for norm in all_norms:
-        points = [[(row["h"], row[norm]) for row in rows if row.get(norm)] for rows in ok.values()]
-        groups.append((names.name(norm).text, [
-            ("finest", [f"{p[-1][1]:.3e}" if p else "-" for p in points]),
-            ("fit", [_rate(fitted_slope(*zip(*p), k=fit_levels) if len(p) > 1 else None, "-") for p in points])]))
+    table = []
+    for label, rows in studies.items():
+        ok = [row for row in rows if row["converged"]]
+        row = {"study": label, "levels": len(rows), "finest_h": ok[-1]["h"] if ok else None,
+               "time_s": sum(row["time_s"] or 0.0 for row in rows)}
+        for norm in all_norms:
+            points = [(row["h"], row[norm]) for row in ok if row.get(norm)]
+            row[f"{norm}_finest"] = points[-1][1] if points else None
+            row[f"{norm}_fit"] = fitted_slope(*zip(*points), k=fit_levels) if len(points) > 1 else None
+        table.append(row)
+    return table, all_norms
+
+
+def summary_table(studies, fit_levels=FIT_LEVELS):
+    """The comparison for the terminal: one line per study, each norm's finest error and fitted slope
+    under its name (wrapped into blocks at TERMINAL_WIDTH)."""
+    table, all_norms = comparison(studies, fit_levels)
+    lead = [("study", [row["study"] for row in table]), ("levels", [str(row["levels"]) for row in table]),
+            ("finest h", [_format("h", row["finest_h"]) for row in table]),
+            ("time_s", [_format("time_s", row["time_s"]) for row in table])]
+    groups = [("", lead)] + [(names.name(norm).text, [
+        ("finest", [_format(norm, row[f"{norm}_finest"]) for row in table]),
+        ("fit", [_rate(row[f"{norm}_fit"], "-") for row in table])]) for norm in all_norms]
     return "\n".join(_aligned(groups))
+
+
+def write_comparison(studies, folder, fit_levels=FIT_LEVELS):
+    """compare.csv, compare.md and compare.tex (fitting a page) of `studies` in `folder`; the paths."""
+    table, all_norms = comparison(studies, fit_levels)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [folder / f"compare.{ext}" for ext in ("csv", "md", "tex")]
+    with open(paths[0], "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(table[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows([{k: "" if v is None else v for k, v in row.items()} for row in table])
+    header = ["study", "levels", "finest h", "time [s]"] + [f"{names.name(n).text} {k}" for n in all_norms
+                                                             for k in ("finest", "fit")]
+    lines = ["| " + " | ".join(header) + " |", "|:---|" + "---:|" * (len(header) - 1)]
+    lines += ["| " + " | ".join([_markdown_text(row["study"]), str(row["levels"]), _paper_number(row["finest_h"]),
+                                f"{row['time_s']:.2f}"] + [cell for n in all_norms for cell in (
+                                    _paper_number(row[f"{n}_finest"]), _rate(row[f"{n}_fit"], "–"))]) + " |"
+              for row in table]
+    paths[1].write_text("\n".join(lines) + "\n")
+    paths[2].write_text(_comparison_tex(table, all_norms, fit_levels))
+    return paths
+
+
+def _paper_number(value, missing="–"):
+    return missing if value is None else f"{value:.3e}"
+
+
+def _comparison_tex(table, all_norms, fit_levels):
+    number = lambda v: "--" if v is None else latex.number(v, 3)  # noqa: E731
+    cells = [("study", [_latex_text(row["study"]) for row in table]),
+             ("levels", [str(row["levels"]) for row in table]),
+             ("finest $h$", [number(row["finest_h"]) for row in table]),
+             ("time [s]", [f"{row['time_s']:.2f}" for row in table])]
+    for norm in all_norms:
+        cells += [("finest", [number(row[f"{norm}_finest"]) for row in table]),
+                  ("fit", [_rate(row[f"{norm}_fit"], "--", latex.rate) for row in table])]
+    caption = ("Comparison of the studies " + ", ".join(_latex_text(row["study"]) for row in table)
+               + f": per norm the error on the finest converged level and the slope of $\\log e$ against "
+               f"$\\log h$ fitted over the last {fit_levels} levels; time: wall time of all levels. "
+               + "; ".join(d for d in map(_definition, all_norms) if d) + ".")
+    text = latex.table(cells, [(_header(n), 2) for n in all_norms], caption, latex.label("compare"), len(table))
+    return "% comparison table written by signorini compare; needs \\usepackage{booktabs}\n" + text
 
 
 # --- tables for papers and notebooks (deal.II ConvergenceTable style: error, then its rate) ----
