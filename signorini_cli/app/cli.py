@@ -16,8 +16,7 @@ except KeyboardInterrupt:
     sys.exit(130)
 
 
-DESCRIPTION = ("FEniCSx convergence studies of the normal compliance model of the Signorini contact problem "
-               "(Cantin & Hild 2020).")
+DESCRIPTION = "FEniCSx convergence studies of the normal compliance contact model."  # one line of --help
 CONFIG_HELP = f"study config (YAML; its keys: {config.DOCS}, or `signorini init`)"
 PETSC_HELP = ("PETSc options such as -snes_monitor or -ksp_rtol 1e-8 may follow the config (or `--`): they join "
               "solver.petsc_options, under the study's prefix")

@@ -84,7 +84,7 @@ def _tex(node):
             return rf"\sqrt{{{argument}}}", ATOM
         if node.func.id == "abs":
             return rf"|{argument}|", ATOM
-        return rf"{FUNCTIONS[node.func.id]}({argument})", PRODUCT
+        return rf"{FUNCTIONS[node.func.id]}({argument})", POWER  # a factor; as a base: (\sin(x))^{2}
     return _binary(node)
 
 

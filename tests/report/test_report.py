@@ -94,8 +94,10 @@ def test_terminal_table_fits_120_columns_all_one_option_away():
     default = tables.format_table(rows, DEMO).splitlines()
     assert max(map(len, default)) <= 120 and len(default) == 2 + len(rows)
     everything = tables.format_table(rows, DEMO, columns="all").splitlines()
-    assert all(column in everything[1] for column in ("dofs", "t_forms", "converged"))
-    assert everything[0].split() == ["L2", "H1", "L2_gc", "pos_gc", "pos_gc_scaled", "energy_err"]
+    assert max(map(len, everything)) <= 120  # wrapped into blocks, each led by the level again
+    blocks = "\n".join(everything).split("\n\n")
+    assert all(block.splitlines()[1 if k else 0].split()[0] == "level" for k, block in enumerate(blocks))
+    assert all(column in "\n".join(everything) for column in ("dofs", "t_forms", "converged", "energy_err"))
 
 
 def test_columns_list_and_unknown_column():
@@ -202,3 +204,34 @@ def test_damaged_h5_falls_back_to_rates_csv(partial_study, damage, caplog):
     cut_csv(folder)
     with pytest.raises(tables.DamagedResults, match="study.h5: damaged.*; .*rates.csv: damaged"):
         tables.load(folder)
+
+
+@pytest.mark.fast
+def test_signorini_problem_table_shows_contact_set_not_eps():
+    # ε = 0 on every level (the variational inequality): no ε column; the contact set's measure instead
+    rows = [dict(row, epsilon=0.0, contact_measure=0.5) for row in demo_like(3)]
+    lead, _ = tables.choose(rows, "paper")
+    assert lead == ["N", "newton_its", "contact_measure"]
+    assert max(map(len, tables.format_table(rows).splitlines())) <= 120
+
+
+@pytest.mark.fast
+def test_reference_norms_scaled_left_out_beside_unscaled():
+    measured = ["L2_ref", "H1_ref", "pos_gc_ref", "pos_gc_scaled_ref"]
+    proven = {n: 1.0 for n in measured}
+    assert tables.paper_norms(measured, proven) == ["L2_ref", "H1_ref", "pos_gc_ref"]
+
+
+def test_columns_choose_the_plotted_norms(tmp_path, monkeypatch):
+    from signorini_cli.report import plots
+    drawn, convergence = [], plots.convergence
+
+    def recorded(rows, *args):
+        fig = convergence(rows, *args)
+        drawn.append([line.get_label().split()[0] for ax in fig.axes for line in ax.lines])
+        return fig
+    monkeypatch.setattr(plots, "convergence", recorded)
+    study = tables.Study("demo", tmp_path, demo_like(3))
+    tables.write(study, DEMO, columns=["N", "H1"], suffix="-N-H1")
+    assert (tmp_path / "rates-N-H1.tex").exists() and not (tmp_path / "rates.tex").exists()
+    assert drawn == [["H¹"]]
