@@ -335,8 +335,9 @@ def caption_of(name, cfg=None):
     if cfg.study_type == "signorini":
         parts.append(r"the Signorini variational inequality ($\varepsilon = 0$)")
     else:
-        theta = "" if cfg.epsilon.theta == 1 and cfg.epsilon.law != "constant" else latex.constant(cfg.epsilon.theta)
-        law = config.LAWS[cfg.epsilon.law].tex.format(p=cfg.epsilon.p).strip()
+        law = config.LAWS[cfg.epsilon.law]
+        theta = "" if cfg.epsilon.theta == 1 and law.p != 0 else latex.constant(cfg.epsilon.theta)  # 1 h: h
+        law = law.tex.format(p=cfg.epsilon.p).strip()
         parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$".replace("{}", "")]
     parts += [_problem(cfg.problem), r"$\Gamma_C$: \texttt{" + latex.escape(cfg.contact) + "}"]
     if cfg.mesh.kind == "gmsh":

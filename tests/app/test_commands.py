@@ -1,4 +1,5 @@
 """check, list, report and compare from the command line; run's --quiet and --verbose."""
+import re
 import subprocess
 import sys
 
@@ -229,3 +230,18 @@ def test_closed_stdout_ends_quietly(make_config, command):
     status = subprocess.run(["bash", "-o", "pipefail", "-c", f"{sys.executable} -m signorini_cli.app.cli "
                              f"{' '.join(argv)} | true"], capture_output=True, timeout=120)
     assert status.returncode == 0 and status.stderr == b""
+
+
+@pytest.mark.fast
+def test_init_names_no_path_of_this_machine(capsys):
+    assert cli.main(["init"]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert not re.search(r"(^|[\s'\"(:])/\w", out, re.M)  # no absolute path: the template is for any machine
+    assert str(commands.SHIPPED_CONFIGS.parent) not in out and not re.search(r"issue\s*#?\d", out, re.I)
+
+
+@pytest.mark.fast
+def test_help_says_what_the_tool_is_in_one_line():
+    text = cli.build_parser().format_help()
+    description = text.split("\n\n")[1]
+    assert "\n" not in description and "convergence studies" in description and "compliance" in description

@@ -235,3 +235,14 @@ def test_columns_choose_the_plotted_norms(tmp_path, monkeypatch):
     tables.write(study, DEMO, columns=["N", "H1"], suffix="-N-H1")
     assert (tmp_path / "rates-N-H1.tex").exists() and not (tmp_path / "rates.tex").exists()
     assert drawn == [["H¹"]]
+
+
+@pytest.mark.fast
+def test_wide_rows_wrapped_at_120_columns_nothing_lost():
+    # an ε → 0 reference table: about 20 columns of .3e numbers, some 200 characters on one line
+    rows = [{"N": n, **{f"column_{k}": 1.0 / (n + k) for k in range(20)}} for n in (8, 16, 32)]
+    lines = tables.format_rows(rows).splitlines()
+    assert max(map(len, lines)) <= 120
+    text = "\n".join(lines)
+    assert all(f"column_{k}" in text for k in range(20)) and text.count("\n\n") >= 1
+    assert all(block.splitlines()[0].split()[0] == "N" for block in text.split("\n\n"))
