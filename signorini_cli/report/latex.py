@@ -126,8 +126,9 @@ def cell_width(cell):
         mantissa, exponent = match.groups()
         power = 12.2 + 10.0 + 0.7 * text_width(exponent) + (4.4 if "-" in exponent else 0.0) if exponent else 0
         return text_width(mantissa) + (4.4 if mantissa.startswith("-") else 0.0) + power
-    plain = re.sub(r"\\[A-Za-z]+\{\}|\\.", "x", cell).replace("$", "")  # one glyph per command
-    return text_width(plain)
+    plain = re.sub(r"\\(texttt|mathrm|textit|emph)\b", "", cell)  # fonts: their argument counts
+    plain = re.sub(r"\\[A-Za-z]+(\{\})?|\\.", "x", plain)  # a symbol or an escaped character: one glyph
+    return text_width(re.sub(r"[{}$^_]", "", plain))
 
 
 # --- the table ------------------------------------------------------------------------------------

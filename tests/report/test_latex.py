@@ -91,7 +91,27 @@ def test_layout_chosen_and_said():
     assert tex.count(r"\label{") == 1 and tex.count(r"\caption{") == 1  # one float, one caption
 
 
+def data_only_like(levels=5):
+    """A gmsh L-shape data-only study's rows (configs/gmsh/l-shape-data-only.yaml: N = 190·4^k cells,
+    h = 3.489 N^(-1/2), ε = h), its errors against the reference and the contact set's measure."""
+    rows = []
+    for k, row in enumerate(demo_like(levels)):
+        n = 190 * 4**k
+        row = dict(row, N=n, h=3.489 / n**0.5, epsilon=3.489 / n**0.5, contact_measure=1.0)
+        for norm in ("L2", "H1"):
+            row[f"{norm}_ref"], row[f"rate_{norm}_ref"] = row.pop(norm), row.pop(f"rate_{norm}")
+        for norm in ("L2_gc", "pos_gc"):
+            row[f"{norm}_ref"], row[f"rate_{norm}_ref"] = row[norm], row[f"rate_{norm}"]
+        rows.append(row)
+    return rows
+
+
+DATA_ONLY = config.load(Path(__file__).resolve().parents[2] / "configs" / "gmsh" / "l-shape-data-only.yaml")
 CASES = {
+    "data-only-columns": lambda: tables.latex_table(
+        data_only_like(), 3, tables.caption_of("gmsh-l-shape-data-only", DATA_ONLY),
+        columns=["N", "h", "epsilon", "L2_ref", "H1_ref", "L2_gc_ref", "pos_gc_ref", "contact_measure"]),
+    "signorini-problem": lambda: tables.latex_table([dict(r, epsilon=0.0, contact_measure=0.5) for r in demo_like()]),
     "demo-paper": lambda: tables.latex_table(demo_like(), 3, tables.caption_of("demo", DEMO),
                                              proven=tables.proven_rates(DEMO), key="tab:demo"),
     "demo-all": lambda: widest(demo_like()),
