@@ -163,6 +163,7 @@ def _units(columns, groups):
 
 
 def _unit_width(unit):
+    """Estimated width (pt, 10 pt font) of a unit with its column separations."""
     title, columns = unit
     widths = [max([cell_width(header)] + [cell_width(c) for c in cells]) + 2 * TABCOLSEP_PT
               for header, cells in columns]
@@ -199,10 +200,9 @@ def _tabular(units, rows_count):
     if any(title for title, _ in units):
         head, rules, at = [], [], 1
         for title, cols in units:
-            head.append(rf"\multicolumn{{{len(cols)}}}{{c}}{{{title}}}" if title else "")
+            head.append(rf"\multicolumn{{{len(cols)}}}{{c}}{{{title}}}" if title else "")  # a single: no title
             if title:
                 rules.append(rf"\cmidrule(lr){{{at}-{at + len(cols) - 1}}}")
-            head += [""] * (len(cols) - 1) if not title else []
             at += len(cols)
         lines += [" & ".join(head) + r" \\", " ".join(rules)]
     lines += [" & ".join(header for header, _ in columns) + r" \\", r"\midrule"]

@@ -60,12 +60,12 @@ def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per
                 for path in save(fig, folder, name + suffix)]
 
 
-def write_comparison(studies, folder, fit_levels=3, width=None):
+def write_comparison(studies, folder, width=None):
     """Several studies ({label: rows}): convergence and work–precision as a grid of one panel per norm,
     and Newton iterations; the paths written."""
     width = width or WIDTH_PT
     with styled():
-        figures = {"compare_convergence": compare_convergence(studies, fit_levels, width),
+        figures = {"compare_convergence": compare_convergence(studies, width),
                    "compare_work_precision": compare_work_precision(studies, width),
                    "compare_newton": newton(studies, "", width)}
         return [path for name, fig in figures.items() if fig is not None for path in save(fig, folder, name)]
@@ -183,9 +183,9 @@ def newton(studies, title="", width=WIDTH_PT):
 
 # --- several studies ----------------------------------------------------------------------------
 
-def compare_convergence(studies, fit_levels=3, width=WIDTH_PT):
-    """A grid of one panel per norm, every study's error against h in it, fitted slopes in the legend."""
-    return _compare(studies, lambda rows, norm: error_curves(rows).get(norm), "h", fit_levels, width)
+def compare_convergence(studies, width=WIDTH_PT):
+    """A grid of one panel per norm, every study's error against h in it (the fitted slopes: compare's table)."""
+    return _compare(studies, lambda rows, norm: error_curves(rows).get(norm), "h", width)
 
 
 def compare_work_precision(studies, width=WIDTH_PT):
@@ -195,7 +195,7 @@ def compare_work_precision(studies, width=WIDTH_PT):
         k = [j for j, row in enumerate(rows) if row["converged"] and row.get(norm) is not None]
         return (total[k], np.array([rows[j][norm] for j in k])) if k else None
     compile_known = all(work(rows)[1] for rows in studies.values())
-    return _compare(studies, curve, _work_label(compile_known), None, width)
+    return _compare(studies, curve, _work_label(compile_known), width)
 
 
 def work(rows):
@@ -210,7 +210,7 @@ def _work_label(compile_known):
     return "cumulative time [s], " + ("JIT excluded" if compile_known else "JIT included")
 
 
-def _compare(studies, curve, xlabel, fit_levels, width):
+def _compare(studies, curve, xlabel, width):
     """One panel per norm, the studies' curves in each, one legend for the figure (in the grid's free
     place, else under it); the fitted slopes are in compare's table."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))

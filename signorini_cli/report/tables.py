@@ -303,22 +303,25 @@ def _h_statement(c, k):
     return rf"$N$: the number of cells, $h = {value}\,N^{{-1/{k}}}$ the largest cell diameter"
 
 
+def _known(column):
+    """Whether names.py names the column (its LaTeX is ours); any other name came from a file."""
+    return column in names.NORMS or column in names.COLUMNS or (column.endswith("_ref") and column[:-4] in names.NORMS)
+
+
 def _header(column):
     """A column's LaTeX header: the short name of a known column, else its own name escaped."""
-    known = column in names.NORMS or column in names.COLUMNS or (column.endswith("_ref") and column[:-4] in names.NORMS)
-    return names.name(column).tex if known else r"\texttt{" + latex.escape(column) + "}"
+    return names.name(column).tex if _known(column) else r"\texttt{" + _latex_text(column) + "}"
 
 
 def _definition(column):
-    known = column in names.NORMS or column in names.COLUMNS or (column.endswith("_ref") and column[:-4] in names.NORMS)
-    return f"{names.name(column).tex}: {names.name(column).definition}" if known else None
+    return f"{names.name(column).tex}: {names.name(column).definition}" if _known(column) else None
 
 
 def _caption(caption, lead, shown, rows, given=()):
     """The caption: the study (LaTeX, see caption_of), what the table leaves out, what each short name
     means, the rate, and the failed levels."""
-    stated = " ".join(given)
-    defined = [d for c in lead + shown if (d := _definition(c)) and not stated.startswith(d.split(":")[0] + ":")]
+    n_given = any(g.startswith("$N$:") for g in given)  # with the law of h
+    defined = [_definition(c) for c in lead + shown if _known(c) and not (c == "N" and n_given)]
     given = [g for g in given if g not in caption]  # ε = h: said with the study already
     text = (caption + ". " if caption else "") + "; ".join(
         list(given) + defined + ([RATE_DEFINITION] if shown else [])) + "."
@@ -338,7 +341,7 @@ def caption_of(name, cfg=None):
         law = config.LAWS[cfg.epsilon.law]
         theta = "" if cfg.epsilon.theta == 1 and law.p != 0 else latex.constant(cfg.epsilon.theta)  # 1 h: h
         law = law.tex.format(p=cfg.epsilon.p).strip()
-        parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$".replace("{}", "")]
+        parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$"]
     parts += [_problem(cfg.problem), r"$\Gamma_C$: \texttt{" + latex.escape(cfg.contact) + "}"]
     if cfg.mesh.kind == "gmsh":
         parts.append(r"gmsh geometry \texttt{" + latex.escape(Path(cfg.mesh.geometry).stem) + "}")

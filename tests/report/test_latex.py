@@ -117,6 +117,8 @@ CASES = {
     "demo-all": lambda: widest(demo_like()),
     "digits-6": lambda: tables.latex_table(demo_like(), 6, columns=["N", "h", "epsilon", "dofs", "L2", "H1",
                                                                     "L2_gc", "pos_gc", "energy_err"]),
+    "long-column-name": lambda: tables.latex_table([dict(r, **{"x_" * 60: 1.5}) for r in demo_like(3)],
+                                                   columns=["N", "x_" * 60, "L2"]),
     "hostile-text": lambda: tables.latex_table([dict(r, reason=HOSTILE[0] * 3) for r in demo_like(3)],
                                                columns=["N", "reason", "L2", "H1"]),
 }
