@@ -6,7 +6,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 GEOMETRY_DIR = ROOT / "meshes"  # the shipped geometries: meshes/<name>.geo
-CACHE_DIR = ROOT / "meshes" / "cache"  # the shipped geometries' meshes (gitignored): one .msh per (geometry, size, .geo hash)
+CACHE_DIR = ROOT / "meshes" / "cache"  # shipped geometries' meshes (gitignored): one .msh per (geometry, size, hash)
 USER_CACHE = "signorini-meshes"  # a user's .geo: its meshes in this folder beside it, not in the tool's checkout
 # Bumped when the meshing options in geometries.generate change, so old cache entries are not reused.
 MESHING_VERSION = "1"

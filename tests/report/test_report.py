@@ -35,7 +35,8 @@ def test_markdown_table_known():
 
 def test_latex_table_grouped_with_definitions_in_caption():
     lines = tables.latex_table(KNOWN[:2], digits=3, caption="Study t", key="tab:t").splitlines()
-    assert lines[0].endswith(r"needs \usepackage{booktabs}") and lines[1] == r"% layout: fits \textwidth at the normal size"
+    assert lines[0].endswith(r"needs \usepackage{booktabs}")
+    assert lines[1] == r"% layout: fits \textwidth at the normal size"
     assert lines[2:4] == [r"\begin{table}", r"\centering"]
     caption = lines[4]
     # h = 2/N and ε = h on every level: the caption says so, the table shows neither column
