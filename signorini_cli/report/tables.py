@@ -536,7 +536,8 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
     chosen, proven = _columns_of(cfg, columns), proven_rates(cfg)
     written = [folder / f"rates{suffix}.md", folder / f"rates{suffix}.tex"]
     description = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
-    written[0].write_text(f"<!-- {description} -->\n" + markdown_table(study.rows, digits, chosen, proven))
+    comment = description.replace("--", "- -")  # "-->" in a description would end the comment
+    written[0].write_text(f"<!-- {comment} -->\n" + markdown_table(study.rows, digits, chosen, proven))
     written[1].write_text(latex_table(study.rows, digits, caption_of(study.name, cfg), chosen, proven,
                                       key=latex.label(study.name, suffix)))
     if plots and study.rows:
