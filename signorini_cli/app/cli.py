@@ -16,13 +16,14 @@ except KeyboardInterrupt:
     sys.exit(130)
 
 
+DESCRIPTION = "FEniCSx convergence studies of the normal compliance contact model."  # one line of --help
 CONFIG_HELP = f"study config (YAML; its keys: {config.DOCS}, or `signorini init`)"
 PETSC_HELP = ("PETSc options such as -snes_monitor or -ksp_rtol 1e-8 may follow the config (or `--`): they join "
               "solver.petsc_options, under the study's prefix")
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(prog="signorini", description=__doc__.split(":")[0],
+    parser = argparse.ArgumentParser(prog="signorini", description=DESCRIPTION,
                                      epilog=f"Config keys: {config.DOCS}; `signorini init` prints every key "
                                             "with its default.")
     parser.add_argument("--version", action=_Version)

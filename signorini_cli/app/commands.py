@@ -1,7 +1,9 @@
 """The commands: run (a study of any type), check (resolved config), init (the commented template), list
 (shipped configs), report and compare; their exit statuses and the one-line error of bad input."""
 import dataclasses
+import hashlib
 import logging
+import re
 import os
 import sys
 from pathlib import Path
@@ -97,17 +99,27 @@ def report_study(args):
         columns = config.table_columns(args.columns, "--columns") if args.columns else None
         figure = {"width": config.length(args.width, "--width") if args.width else None,
                   "per_norm": args.per_norm}
+        folder = Path(args.output or study.folder)
+        beside = args.columns and folder.resolve() == study.folder.resolve()
         written = []
-        if MPI.COMM_WORLD.rank == 0:
-            written = tables.write(study, cfg, digits, plots=not args.no_plots, folder=args.output,
-                                   columns=columns, figure=figure)
+        if MPI.COMM_WORLD.rank == 0:  # other columns beside the study's own files, never over them
+            written = tables.write(study, cfg, digits, plots=not args.no_plots, folder=folder, columns=columns,
+                                   figure=figure, suffix=columns_suffix(args.columns) if beside else "")
             table = tables.format_table(study.rows, cfg, columns)
     except (ConfigError, OSError) as err:
         return fail(args.path, err)
     if MPI.COMM_WORLD.rank == 0:
         emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
-              f"wrote into {Path(args.output or study.folder)}: " + ", ".join(p.name for p in written)])
+              f"wrote into {folder}: " + ", ".join(p.name for p in written)])
     return EXIT_OK
+
+
+def columns_suffix(columns):
+    """"-N-h-L2" for `--columns N,h,L2`: a file name part (long lists cut, a hash keeps them apart)."""
+    slug = "-".join(re.sub(r"[^A-Za-z0-9_]+", "", c) for c in columns.split(","))
+    if len(slug) > 48:
+        slug = slug[:39] + "-" + hashlib.sha256(columns.encode()).hexdigest()[:8]
+    return "-" + slug
 
 
 def study_config(study):
@@ -137,9 +149,14 @@ def compare(args):
         if args.label and len(args.label) != len(studies):
             raise ConfigError("--label", f"give one per study: {len(studies)} studies, {len(args.label)} labels")
         labels = args.label or _labels(studies)
+        twice = next((label for label in labels if labels.count(label) > 1), None)
+        if twice is not None:  # one label would stand for two studies in the legend and the table
+            raise ConfigError("--label", f"{twice!r} names two of the studies; give each its own label")
         folder = Path(args.output) if args.output else studies[0].folder.parent / "compare"
         rows = dict(zip(labels, (study.rows for study in studies)))
-        written = plots.write_comparison(rows, folder) if MPI.COMM_WORLD.rank == 0 else []
+        written = []
+        if MPI.COMM_WORLD.rank == 0:
+            written = tables.write_comparison(rows, folder) + plots.write_comparison(rows, folder)
     except (ConfigError, OSError) as err:
         return fail("compare", err)
     if MPI.COMM_WORLD.rank == 0:

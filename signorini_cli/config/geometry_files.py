@@ -6,7 +6,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 GEOMETRY_DIR = ROOT / "meshes"  # the shipped geometries: meshes/<name>.geo
-CACHE_DIR = str(ROOT / "meshes" / "cache")  # gitignored; one .msh per (geometry, size, .geo hash)
+CACHE_DIR = ROOT / "meshes" / "cache"  # shipped geometries' meshes (gitignored): one .msh per (geometry, size, hash)
+USER_CACHE = "signorini-meshes"  # a user's .geo: its meshes in this folder beside it, not in the tool's checkout
 # Bumped when the meshing options in geometries.generate change, so old cache entries are not reused.
 MESHING_VERSION = "1"
 
@@ -55,12 +56,21 @@ def source_hash(paths):
     return digest.hexdigest()[:16]
 
 
+def cache_folder(geo, cache=""):
+    """Where the meshes of `geo` are kept: `cache` when the config names one, else meshes/cache for a
+    shipped geometry and signorini-meshes/ beside a user's .geo (their meshes stay with their geometry)."""
+    if cache:
+        return Path(cache)
+    geo = Path(geo).resolve()
+    return CACHE_DIR if geo.parent == GEOMETRY_DIR.resolve() else geo.parent / USER_CACHE
+
+
 def cache_file(cache_dir, geo, size):
-    """The cache entry of `geo` meshed at `size`: named by geometry and size, keyed by a hash of the
-    .geo text, so a changed geometry file gets a new entry instead of its stale mesh."""
+    """The cache entry of `geo` meshed at `size` in `cache_dir` (empty: cache_folder's choice): named by
+    geometry and size, keyed by a hash of the .geo text, so a changed geometry gets a new entry."""
     digest = hashlib.sha256(Path(geo).read_bytes())
     digest.update(f"size={size!r};meshing={MESHING_VERSION}".encode())
-    return Path(cache_dir) / f"{Path(geo).stem}-h{size:g}-{digest.hexdigest()[:16]}.msh"
+    return cache_folder(geo, cache_dir) / f"{Path(geo).stem}-h{size:g}-{digest.hexdigest()[:16]}.msh"
 
 
 def msh_node_count(path, chunk=1 << 20):

@@ -120,7 +120,8 @@ class Mesh:
     path: tuple = key((), ".msh files, one per level (the base mesh with refine: uniform)",
                       example=("mesh.msh",), only="only with kind: file")
     refine: str = key("none", "none | uniform: levels refine one base mesh (nested)", only="only with kind: gmsh or file")
-    cache: str = key(geometry_files.CACHE_DIR, "where gmsh meshes are kept", only="only with kind: gmsh")
+    cache: str = key("", "where gmsh meshes are kept (empty: meshes/cache for a shipped geometry, "
+                         f"{geometry_files.USER_CACHE}/ beside a .geo file)", only="only with kind: gmsh")
     groups: tuple = key((), internal=True)        # gmsh/file: (name, dimension) of the source's physical groups
     source_hash: str = key("", internal=True)     # gmsh/file: of the .geo/.msh contents (the config hash)
 
@@ -521,7 +522,7 @@ def _geometry_mesh(raw, path, folder):
     else:
         refinements = ()
     return Mesh(kind, refinements, geometry=geometry, sizes=entries if kind == "gmsh" else (),
-                path=entries if kind == "file" else (), refine=refine, cache=_resolve(s.string("cache"), folder),
+                path=entries if kind == "file" else (), refine=refine, cache=_resolve(s.string("cache", empty=True), folder) if raw.get("cache") else "",
                 groups=_groups(sources, s.at(source)), source_hash=geometry_files.source_hash(sources))
 
 

@@ -69,8 +69,9 @@ def read_level(mesh_cfg, contact, entry, comm=MPI.COMM_WORLD):
 
 # --- gmsh on rank 0 ------------------------------------------------------------------------------
 
-def mesh_file(geo, size, dim, cache_dir, comm=MPI.COMM_WORLD):
-    """(path, generated): the cached .msh of `geo` at `size`, meshed by gmsh on rank 0 on a miss."""
+def mesh_file(geo, size, dim, cache_dir="", comm=MPI.COMM_WORLD):
+    """(path, generated): the cached .msh of `geo` at `size` (in `cache_dir`, else where
+    geometry_files.cache_folder says), meshed by gmsh on rank 0 on a miss."""
     def work():
         path = geometry_files.cache_file(cache_dir, geo, size)
         if path.exists():

@@ -1,6 +1,6 @@
 """Figures of a study (PNG and PDF): error vs h with slope triangles, work–precision, Newton iterations,
-and the same curves for several studies. Page-sized with a fixed layout and plain-text labels (no
-tight_layout, no mathtext: they cost more than the drawing). matplotlib is imported here only (Agg)."""
+and the same curves for several studies. Page-sized with a fixed layout chosen from the number of norms
+and the width (no tight_layout), log ticks as 10^k. matplotlib is imported here only (Agg)."""
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,14 +22,16 @@ STYLE = {
     "ytick.labelsize": FONT_PT, "axes.labelsize": FONT_PT, "legend.framealpha": 0.9,
     "axes.grid": True, "grid.alpha": 0.35, "grid.linewidth": 0.5, "lines.linewidth": 1.2,
     "lines.markersize": 4, "legend.handlelength": 2.6, "savefig.dpi": 200, "pdf.fonttype": 42,
+    "mathtext.fontset": "stix",  # the tick labels' 10^k in the text's serif
 }
 FORMATS = ("png", "pdf")
 WIDTH_PT = 345.0  # \textwidth of a default LaTeX article: placed at 100 %, the text stays 8 pt
 WIDTH, HEIGHT = WIDTH_PT / 72, 2.6  # inches, for callers that draw their own figure (limit_docs)
 SHARED_PANEL = 2  # norms drawn in one panel; more norms get more panels
 MIN_PANEL_PT = 160.0  # panels per row: as many as fit this wide
+MAX_ASPECT = 1.2  # a figure at most this many times as tall as wide: a journal column's figure fits its page
 # fixed margins around each panel, pt: tick labels and the axis label left and below, the legend under it
-LEFT, RIGHT, TOP, BELOW, TITLE, LEGEND_LINE = 40.0, 8.0, 6.0, 26.0, 14.0, 10.5
+LEFT, RIGHT, TOP, BELOW, TITLE, LEGEND_LINE = 40.0, 8.0, 6.0, 26.0, 14.0, 11.5
 
 
 @dataclass(frozen=True)
@@ -39,9 +41,11 @@ class Layout:
     per_norm: bool = False
 
 
-def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per_norm=False, shown=None):
+def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per_norm=False, shown=None,
+              suffix=""):
     """convergence, work_precision and newton (and convergence_<norm> with per_norm), each as PNG and PDF
-    in `folder`; the paths written. `shown`: the norms of the convergence figure (default: all)."""
+    in `folder`, `suffix` added to their names; the paths written. `shown`: the plotted norms (default:
+    all)."""
     layout = Layout(width or WIDTH_PT, per_norm)
     curves = error_curves(rows)
     shown = [n for n in (shown or curves) if n in curves]
@@ -52,15 +56,16 @@ def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per
         if per_norm:
             figures.update({f"convergence_{n}": convergence(rows, proven, title, fit_levels, layout.width, [n])
                             for n in curves})
-        return [path for name, fig in figures.items() if fig is not None for path in save(fig, folder, name)]
+        return [path for name, fig in figures.items() if fig is not None
+                for path in save(fig, folder, name + suffix)]
 
 
-def write_comparison(studies, folder, fit_levels=3, width=None):
+def write_comparison(studies, folder, width=None):
     """Several studies ({label: rows}): convergence and work–precision as a grid of one panel per norm,
     and Newton iterations; the paths written."""
     width = width or WIDTH_PT
     with styled():
-        figures = {"compare_convergence": compare_convergence(studies, fit_levels, width),
+        figures = {"compare_convergence": compare_convergence(studies, width),
                    "compare_work_precision": compare_work_precision(studies, width),
                    "compare_newton": newton(studies, "", width)}
         return [path for name, fig in figures.items() if fig is not None for path in save(fig, folder, name)]
@@ -85,32 +90,51 @@ def save(fig, folder, name):
 # --- one study ----------------------------------------------------------------------------------
 
 def convergence(rows, proven=None, title="", fit_levels=3, width=WIDTH_PT, shown=None):
-    """The norms `shown` (default all) against h, log-log, up to SHARED_PANEL per panel. A proven rate
-    gets a dashed, open triangle marked "proven"; a norm without one a filled triangle of its fitted
-    slope; the fitted slope is in the legend either way."""
+    """The norms `shown` (default all) against h, log-log, SHARED_PANEL per panel or more where the
+    figure would be too tall (norm_groups). A proven rate gets a dashed, open triangle marked "proven";
+    a norm without one a filled triangle of its fitted slope; the fitted slope is in the legend either
+    way. Triangles go above the panel's top curve and below its bottom one (clear of the others)."""
     curves = error_curves(rows)
     shown = [n for n in (shown or curves) if n in curves]
     if not shown:
         return None
     proven = proven or {}
-    groups = [shown[i:i + SHARED_PANEL] for i in range(0, len(shown), SHARED_PANEL)]
+    groups = norm_groups(len(shown), width, title)
+    groups = [shown[start:start + size] for start, size in zip(np.cumsum([0] + groups[:-1]), groups)]
     fig, axes = panels(len(groups), width, max(map(len, groups)), title)
     for ax, group in zip(axes, groups):
-        top = max(group, key=lambda norm: curves[norm][1][-1])
+        by_finest = sorted(group, key=lambda norm: curves[norm][1][-1])
         for norm in group:
             h, e = curves[norm]
             slope = fitted(list(h), list(e), [True] * len(e), fit_levels)
             fit = f"fit {slope:.2f}" if slope is not None else "one level"
+            marked = norm in (by_finest[0], by_finest[-1])
+            if norm in proven and not marked:
+                fit += f", proven {_rate_text(proven[norm])}"
             line, = ax.loglog(h, e, label=f"{names.name(norm).text}  ({fit})", **curve_style(shown.index(norm)))
             rate = proven.get(norm, slope)
-            if rate is not None and len(h) >= 2:
-                slope_triangle(ax, h, e, rate, above=norm == top and len(group) > 1, colour=line.get_color(),
-                               proven=norm in proven)
+            if marked and rate is not None and len(h) >= 2:
+                slope_triangle(ax, h, e, rate, above=norm == by_finest[-1] and len(group) > 1,
+                               colour=line.get_color(), proven=norm in proven)
         ax.set_xlabel("h")
         ax.set_ylabel("error")
         _legend_below(ax)
     _finish(fig, axes)
     return fig
+
+
+def norm_groups(count, width, title=""):
+    """Panel sizes for `count` norms: SHARED_PANEL a panel, or more a panel where that figure would be
+    taller than MAX_ASPECT × width; never an empty place in the grid (sizes differ by one at most)."""
+    ncols = max(1, int(width // MIN_PANEL_PT))
+    for per in range(SHARED_PANEL, max(count, SHARED_PANEL) + 1):
+        n = -(-count // per)
+        if n > ncols:
+            n = min(count, -(-n // ncols) * ncols)  # full rows
+        sizes = [count // n + (k < count % n) for k in range(n)]
+        if figure_height(n, width, max(sizes), title) <= MAX_ASPECT * width:
+            return sizes
+    return [count]
 
 
 def work_precision(rows, title="", width=WIDTH_PT, shown=None):
@@ -159,9 +183,9 @@ def newton(studies, title="", width=WIDTH_PT):
 
 # --- several studies ----------------------------------------------------------------------------
 
-def compare_convergence(studies, fit_levels=3, width=WIDTH_PT):
-    """A grid of one panel per norm, every study's error against h in it, fitted slopes in the legend."""
-    return _compare(studies, lambda rows, norm: error_curves(rows).get(norm), "h", fit_levels, width)
+def compare_convergence(studies, width=WIDTH_PT):
+    """A grid of one panel per norm, every study's error against h in it (the fitted slopes: compare's table)."""
+    return _compare(studies, lambda rows, norm: error_curves(rows).get(norm), "h", width)
 
 
 def compare_work_precision(studies, width=WIDTH_PT):
@@ -171,7 +195,7 @@ def compare_work_precision(studies, width=WIDTH_PT):
         k = [j for j, row in enumerate(rows) if row["converged"] and row.get(norm) is not None]
         return (total[k], np.array([rows[j][norm] for j in k])) if k else None
     compile_known = all(work(rows)[1] for rows in studies.values())
-    return _compare(studies, curve, _work_label(compile_known), None, width)
+    return _compare(studies, curve, _work_label(compile_known), width)
 
 
 def work(rows):
@@ -186,22 +210,30 @@ def _work_label(compile_known):
     return "cumulative time [s], " + ("JIT excluded" if compile_known else "JIT included")
 
 
-def _compare(studies, curve, xlabel, fit_levels, width):
+def _compare(studies, curve, xlabel, width):
+    """One panel per norm, the studies' curves in each, one legend for the figure (in the grid's free
+    place, else under it); the fitted slopes are in compare's table."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
     if not all_norms:
         return None
-    fig, axes = panels(len(all_norms), width, len(studies), "")
+    ncols = max(1, min(len(all_norms), int(width // MIN_PANEL_PT)))
+    free = -len(all_norms) % ncols
+    fig, axes = panels(len(all_norms) + free, width, 0, "", shared_legend=0 if free else len(studies))
     for ax, norm in zip(axes, all_norms):
         for i, (label, rows) in enumerate(studies.items()):
             xy = curve(rows, norm)
-            if xy is None or not len(xy[0]):
-                continue
-            slope = fitted(list(xy[0]), list(xy[1]), [True] * len(xy[0]), fit_levels) if fit_levels else None
-            ax.loglog(*xy, label=label + (f" (fit {slope:.2f})" if slope is not None else ""), **curve_style(i))
+            if xy is not None and len(xy[0]):
+                ax.loglog(*xy, label=label, **curve_style(i))
         ax.set_ylabel(names.name(norm).text)
         ax.set_xlabel(xlabel)
-        _legend_below(ax)
-    _finish(fig, axes)
+    entries = {label: handle for ax in axes for handle, label in zip(*ax.get_legend_handles_labels())}
+    for ax in axes[len(all_norms):]:  # the free place holds the legend
+        ax.set_axis_off()
+        ax.legend(entries.values(), entries.keys(), loc="center", frameon=False)
+    if not free:
+        fig.legend(entries.values(), entries.keys(), loc="lower center", frameon=False,
+                   ncol=min(len(entries), 3), borderaxespad=0.3)
+    _finish(fig, axes[:len(all_norms)])
     return fig
 
 
@@ -254,27 +286,37 @@ def curve_style(i):
             "linestyle": LINESTYLES[i % len(LINESTYLES)]}
 
 
-def panels(count, width, legend_lines, title):
+def panels(count, width, legend_lines, title, shared_legend=0):
     """A figure `width` pt wide with `count` axes placed at fixed points (as many per row as fit
-    MIN_PANEL_PT), room under each for its axis label and a legend of `legend_lines` entries."""
+    MIN_PANEL_PT), room under each for its axis label and a legend of `legend_lines` entries, and under
+    them all for a figure legend of `shared_legend` entries (three a line)."""
     from matplotlib.figure import Figure
     ncols = max(1, min(count, int(width // MIN_PANEL_PT)))
-    nrows = -(-count // ncols)  # ceiling division
-    cell = width / ncols
-    ax_w = cell - LEFT - RIGHT
-    ax_h = min(0.62 * ax_w, 200.0)
-    below = BELOW + LEGEND_LINE * legend_lines + 4.0
-    row_h = TOP + ax_h + below
-    height = nrows * row_h + (TITLE if title else 0.0)
+    ax_w, ax_h, row_h = _panel_size(width, ncols, legend_lines)
+    foot = LEGEND_LINE * -(-shared_legend // 3) + 6.0 if shared_legend else 0.0
+    height = figure_height(count, width, legend_lines, title) + foot
     fig = Figure(figsize=(width / 72, height / 72))
     axes = []
     for k in range(count):
         r, c = divmod(k, ncols)
         bottom = height - (TITLE if title else 0.0) - r * row_h - TOP - ax_h
-        axes.append(fig.add_axes([(c * cell + LEFT) / width, bottom / height, ax_w / width, ax_h / height]))
+        axes.append(fig.add_axes([(c * width / ncols + LEFT) / width, bottom / height, ax_w / width, ax_h / height]))
     if title:
         fig.text(0.5, 1 - 3.0 / height, title, ha="center", va="top", fontsize=FONT_PT)
     return fig, axes
+
+
+def _panel_size(width, ncols, legend_lines):
+    """(axes width, axes height, row height) in pt."""
+    ax_w = width / ncols - LEFT - RIGHT
+    ax_h = min(0.62 * ax_w, 200.0)
+    return ax_w, ax_h, TOP + ax_h + BELOW + LEGEND_LINE * legend_lines + 4.0
+
+
+def figure_height(count, width, legend_lines, title=""):
+    """The height (pt) of `count` panels with legends of `legend_lines` entries (panels())."""
+    ncols = max(1, min(count, int(width // MIN_PANEL_PT)))
+    return -(-count // ncols) * _panel_size(width, ncols, legend_lines)[2] + (TITLE if title else 0.0)
 
 
 def _legend_below(ax, ncol=1):
@@ -291,35 +333,72 @@ def _integer_axis(ax):
 
 
 def readable_log_axis(axis):
-    """On a log axis spanning less than 2.5 decades, ticks at 1, 2, 5 (or 1, 3) × 10^k labelled as plain
-    numbers; otherwise powers of ten as plain text (1e-3), not mathtext; no minor ticks."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator
+    """One tick format on a log axis: decades labelled 10^k where two or more lie in view; otherwise
+    ticks at 1, 2, 5 (or 1, 3) × 10^k, labelled m×10^k; no minor ticks."""
+    from matplotlib.ticker import FuncFormatter, LogFormatterMathtext, LogLocator, NullLocator
     low, high = sorted(axis.get_view_interval())
     if low <= 0:
         return
-    decades = math.log10(high / low)
-    if decades < 2.5:  # 1-2-5 fits a narrow panel up to 1.2 decades, 1-3 up to 2.5
-        axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0) if decades < 1.2 else (1.0, 3.0)))
-        axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    decades = math.floor(math.log10(high) + 1e-9) - math.ceil(math.log10(low) - 1e-9) + 1
+    if decades >= 2:
+        axis.set_major_locator(LogLocator(base=10, numticks=7))
+        axis.set_major_formatter(LogFormatterMathtext())
     else:
-        axis.set_major_formatter(FuncFormatter(_power_of_ten))
+        span = math.log10(high / low)
+        axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0) if span < 1.2 else (1.0, 3.0)))
+        axis.set_major_formatter(FuncFormatter(_scientific))
     axis.set_minor_locator(NullLocator())  # unlabelled minor ticks cost half the drawing time
 
 
-def _power_of_ten(value, _):
-    exponent = math.log10(value) if value > 0 else 0.5
-    if abs(exponent - round(exponent)) > 1e-9:
-        return ""
-    return f"{value:g}" if -2 <= exponent <= 3 else f"1e{int(round(exponent))}"
+def _scientific(value, _):
+    """$m\\times10^{k}$, or $10^{k}$ for m = 1: LogFormatterMathtext's style with a mantissa."""
+    exponent = math.floor(math.log10(value) + 1e-9)
+    mantissa = value / 10 ** exponent
+    return f"$10^{{{exponent}}}$" if abs(mantissa - 1) < 1e-6 else f"${mantissa:.2g}\\times10^{{{exponent}}}$"
 
 
 def _finish(fig, axes):
-    """Tick labels as plain text on every log axis (after the data limits are final)."""
+    """Limits that keep every text inside its axes (clear of the tick labels), then one tick format per
+    log axis."""
     for ax in axes:
         ax.autoscale_view()
+    _keep_inside(fig, [ax for ax in axes if ax.texts])
+    for ax in axes:
         for axis, scale in ((ax.xaxis, ax.get_xscale()), (ax.yaxis, ax.get_yscale())):
             if scale == "log":
                 readable_log_axis(axis)
+
+
+def _keep_inside(fig, axes, pad=3.0, rounds=4):
+    """Widen the log limits of `axes` until their texts (triangle labels) lie `pad` pt inside them."""
+    if not axes:
+        return
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    scale = fig.dpi / 72
+    for _ in range(rounds):
+        moved = False
+        for ax in axes:
+            box = ax.get_window_extent(renderer)
+            extents = [text.get_window_extent(renderer) for text in ax.texts]
+            out = [max(0.0, max(box.x0 + pad * scale - e.x0 for e in extents)),
+                   max(0.0, max(e.x1 - box.x1 + pad * scale for e in extents)),
+                   max(0.0, max(box.y0 + pad * scale - e.y0 for e in extents)),
+                   max(0.0, max(e.y1 - box.y1 + pad * scale for e in extents))]
+            moved |= any(out)
+            _widen(ax.get_xlim(), out[0], out[1], box.width, ax.set_xlim)
+            _widen(ax.get_ylim(), out[2], out[3], box.height, ax.set_ylim)
+        if not moved:
+            return
+
+
+def _widen(limits, low_px, high_px, size_px, set_limits):
+    """Move log limits out by what low_px and high_px take of the axis (a little more: the texts move too)."""
+    if not (low_px or high_px):
+        return
+    low, high = math.log10(limits[0]), math.log10(limits[1])
+    per_px = (high - low) / max(size_px - low_px - high_px, 0.3 * size_px)
+    set_limits(10 ** (low - 1.15 * low_px * per_px), 10 ** (high + 1.15 * high_px * per_px))
 
 
 # --- the ε → 0 studies ---------------------------------------------------------------------------

@@ -11,6 +11,7 @@ from ..analysis.rates import fitted
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
 from ..record import results
+from . import latex
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
 PAPER_LEADING = ("N", "h", "epsilon", "newton_its")  # what a paper shows before the errors
@@ -51,7 +52,9 @@ def choose(rows, columns="paper", proven=None):
         return [c for c in rows[0] if c not in measured and not c.startswith("rate_") and c != "reason"], measured
     if columns == "paper":  # h goes when N gives it (h = c/N on every level): the caption says c
         lead = [c for c in PAPER_LEADING if c in rows[0] and not (c == "h" and h_per_N(rows))]
-        return lead, paper_norms(measured, proven or {})
+        if "epsilon" in lead and all(row["epsilon"] == 0 for row in rows):  # the Signorini problem: no ε,
+            lead = [c for c in lead if c != "epsilon"] + [c for c in ("contact_measure",) if c in rows[0]]
+        return lead, paper_norms(measured, proven or {})  # its contact set's measure instead
     unknown = [c for c in columns if c not in rows[0]]
     if unknown:
         raise ConfigError("output.columns", f"{unknown[0]!r} is not a column of this study; it has "
@@ -62,7 +65,8 @@ def choose(rows, columns="paper", proven=None):
 def paper_norms(measured, proven):
     """The measured norms with a proven rate, pos_gc_scaled left out beside pos_gc (a power of it,
     Corollary 3.2 ii); with no proven rate known, the first two measured (L2, H1)."""
-    shown = [n for n in measured if n in proven and not (n == "pos_gc_scaled" and "pos_gc" in proven)]
+    shown = [n for n in measured if n in proven and not (n.startswith("pos_gc_scaled")
+                                                          and n.replace("_scaled", "") in proven)]
     return shown or measured[:2]
 
 
@@ -100,9 +104,32 @@ def format_table(rows, cfg=None, columns=None):
     return "\n".join(_aligned(groups) + _failures(rows, end=""))
 
 
-def _aligned(groups):
+def _aligned(groups, width=TERMINAL_WIDTH):
     """Lines of a right-aligned table whose column groups [(title, [(header, cells)])] get their title
-    centred above them (a title line only when some group has one)."""
+    centred above them; wider than `width`, it is wrapped into blocks that repeat the first column."""
+    units = [(title, [column]) for title, columns in groups if not title for column in columns]
+    units += [group for group in groups if group[0]]
+    key = units[0]
+    blocks = [[]]
+    for unit in units:
+        if blocks[-1] and max(map(len, _block(_merged(blocks[-1] + [unit])))) > width:
+            blocks.append([key])
+        blocks[-1].append(unit)
+    return [line for k, block in enumerate(blocks) for line in ([""] if k else []) + _block(_merged(block))]
+
+
+def _merged(units):
+    """Neighbouring untitled single columns as one group again (two spaces apart, not four)."""
+    groups = []
+    for title, columns in units:
+        if not title and groups and not groups[-1][0]:
+            groups[-1] = ("", groups[-1][1] + columns)
+        else:
+            groups.append((title, columns))
+    return groups
+
+
+def _block(groups):
     widths = [[max(len(header), *map(len, cells)) for header, cells in columns] for _, columns in groups]
     spans = [sum(w) + 2 * (len(w) - 1) for w in widths]
     spans = [max(span, len(title)) for span, (title, _) in zip(spans, groups)]
@@ -130,21 +157,77 @@ def _format(column, value):
     return str(value)
 
 
-def summary_table(studies, fit_levels=FIT_LEVELS):
-    """One line per study ({label: rows}): levels, finest h, per norm (under its name) the finest error
-    and the slope fitted over the last `fit_levels` levels, total wall time."""
+def comparison(studies, fit_levels=FIT_LEVELS):
+    """One row per study ({label: rows}): levels, finest converged h, total wall time, per norm the
+    finest error (<norm>_finest) and the slope fitted over the last `fit_levels` levels (<norm>_fit)."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
-    ok = {label: [row for row in rows if row["converged"]] for label, rows in studies.items()}
-    lead = [("study", list(studies)), ("levels", [str(len(rows)) for rows in studies.values()]),
-            ("finest h", [f"{rows[-1]['h']:.3e}" if rows else "-" for rows in ok.values()]),
-            ("time_s", [f"{sum(row['time_s'] or 0.0 for row in rows):.2f}" for rows in studies.values()])]
-    groups = [("", lead)]
-    for norm in all_norms:
-        points = [[(row["h"], row[norm]) for row in rows if row.get(norm)] for rows in ok.values()]
-        groups.append((names.name(norm).text, [
-            ("finest", [f"{p[-1][1]:.3e}" if p else "-" for p in points]),
-            ("fit", [_rate(fitted_slope(*zip(*p), k=fit_levels) if len(p) > 1 else None, "-") for p in points])]))
+    table = []
+    for label, rows in studies.items():
+        ok = [row for row in rows if row["converged"]]
+        row = {"study": label, "levels": len(rows), "finest_h": ok[-1]["h"] if ok else None,
+               "time_s": sum(row["time_s"] or 0.0 for row in rows)}
+        for norm in all_norms:
+            points = [(row["h"], row[norm]) for row in ok if row.get(norm)]
+            row[f"{norm}_finest"] = points[-1][1] if points else None
+            row[f"{norm}_fit"] = fitted_slope(*zip(*points), k=fit_levels) if len(points) > 1 else None
+        table.append(row)
+    return table, all_norms
+
+
+def summary_table(studies, fit_levels=FIT_LEVELS):
+    """The comparison for the terminal: one line per study, each norm's finest error and fitted slope
+    under its name (wrapped into blocks at TERMINAL_WIDTH)."""
+    table, all_norms = comparison(studies, fit_levels)
+    lead = [("study", [row["study"] for row in table]), ("levels", [str(row["levels"]) for row in table]),
+            ("finest h", [_format("h", row["finest_h"]) for row in table]),
+            ("time_s", [_format("time_s", row["time_s"]) for row in table])]
+    groups = [("", lead)] + [(names.name(norm).text, [
+        ("finest", [_format(norm, row[f"{norm}_finest"]) for row in table]),
+        ("fit", [_rate(row[f"{norm}_fit"], "-") for row in table])]) for norm in all_norms]
     return "\n".join(_aligned(groups))
+
+
+def write_comparison(studies, folder, fit_levels=FIT_LEVELS):
+    """compare.csv, compare.md and compare.tex (fitting a page) of `studies` in `folder`; the paths."""
+    table, all_norms = comparison(studies, fit_levels)
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [folder / f"compare.{ext}" for ext in ("csv", "md", "tex")]
+    with open(paths[0], "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(table[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows([{k: "" if v is None else v for k, v in row.items()} for row in table])
+    header = ["study", "levels", "finest h", "time [s]"] + [f"{names.name(n).text} {k}" for n in all_norms
+                                                             for k in ("finest", "fit")]
+    lines = ["| " + " | ".join(header) + " |", "|:---|" + "---:|" * (len(header) - 1)]
+    lines += ["| " + " | ".join([_markdown_text(row["study"]), str(row["levels"]), _paper_number(row["finest_h"]),
+                                f"{row['time_s']:.2f}"] + [cell for n in all_norms for cell in (
+                                    _paper_number(row[f"{n}_finest"]), _rate(row[f"{n}_fit"], "–"))]) + " |"
+              for row in table]
+    paths[1].write_text("\n".join(lines) + "\n")
+    paths[2].write_text(_comparison_tex(table, all_norms, fit_levels))
+    return paths
+
+
+def _paper_number(value, missing="–"):
+    return missing if value is None else f"{value:.3e}"
+
+
+def _comparison_tex(table, all_norms, fit_levels):
+    number = lambda v: "--" if v is None else latex.number(v, 3)  # noqa: E731
+    cells = [("study", [_latex_text(row["study"]) for row in table]),
+             ("levels", [str(row["levels"]) for row in table]),
+             ("finest $h$", [number(row["finest_h"]) for row in table]),
+             ("time [s]", [f"{row['time_s']:.2f}" for row in table])]
+    for norm in all_norms:
+        cells += [("finest", [number(row[f"{norm}_finest"]) for row in table]),
+                  ("fit", [_rate(row[f"{norm}_fit"], "--", latex.rate) for row in table])]
+    caption = ("Comparison of the studies " + ", ".join(_latex_text(row["study"]) for row in table)
+               + f": per norm the error on the finest converged level and the slope of $\\log e$ against "
+               f"$\\log h$ fitted over the last {fit_levels} levels; time: wall time of all levels. "
+               + "; ".join(d for d in map(_definition, all_norms) if d) + ".")
+    text = latex.table(cells, [(_header(n), 2) for n in all_norms], caption, latex.label("compare"), len(table))
+    return "% comparison table written by signorini compare; needs \\usepackage{booktabs}\n" + text
 
 
 # --- tables for papers and notebooks (deal.II ConvergenceTable style: error, then its rate) ----
@@ -157,7 +240,7 @@ def markdown_table(rows, digits=3, columns="paper", proven=None):
                                                    for k in ("error", "rate")]
     lines = ["| " + " | ".join(header) + " |", "|" + "---:|" * len(header)]
     for row in rows:
-        cells = [_paper_cell(c, row, digits, _scientific, "–") for c in lead]
+        cells = [_paper_cell(c, row, digits, _scientific, "–", _markdown_text) for c in lead]
         for norm in shown:
             cells += [_paper_cell(norm, row, digits, _scientific, "–"), _rate(row.get(f"rate_{norm}"), "–")]
         lines.append("| " + " | ".join(cells) + " |")
@@ -165,52 +248,115 @@ def markdown_table(rows, digits=3, columns="paper", proven=None):
     return "\n".join(lines + ([""] + notes if notes else [])) + "\n"  # a blank line ends the table
 
 
-def latex_table(rows, digits=3, caption="", columns="paper", proven=None):
-    """The rate table as a booktabs `table` float (needs \\usepackage{booktabs}): "error | rate" under
-    each norm's short name, the definitions in the caption; numbers as 2.303e-2."""
+def latex_table(rows, digits=3, caption="", columns="paper", proven=None, key=None):
+    """The rate table as a booktabs `table` float (needs \\usepackage{booktabs}, said in its first line):
+    "error | rate" under each norm's short name, numbers as $2.303\\times10^{-2}$, columns N or the
+    caption already gives left out, a layout that fits \\textwidth (latex.table), a \\label `key`."""
     lead, shown = choose(rows, columns, proven)
-    first = len(lead) + 1
-    lines = [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{3pt}",
-             r"\caption{" + _caption(caption, lead, shown, rows) + "}",
-             r"\begin{tabular}{" + "r" * len(lead) + "rr" * len(shown) + "}", r"\toprule"]
-    if shown:
-        lines.append(" & ".join([""] * len(lead) + [rf"\multicolumn{{2}}{{c}}{{{names.name(n).tex}}}"
-                                                     for n in shown]) + r" \\")
-        lines.append(" ".join(rf"\cmidrule(lr){{{first + 2 * i}-{first + 2 * i + 1}}}" for i in range(len(shown))))
-    lines += [" & ".join([names.name(c).tex for c in lead] + ["error", "rate"] * len(shown)) + r" \\",
-              r"\midrule"]
-    for row in rows:
-        cells = [_paper_cell(c, row, digits, _latex_number, "--") for c in lead]
-        for norm in shown:
-            cells += [_paper_cell(norm, row, digits, _latex_number, "--"), _rate(row.get(f"rate_{norm}"), "--")]
-        lines.append(" & ".join(cells) + r" \\")
-    lines += [r"\bottomrule", r"\end{tabular}", r"\end{table}"]
-    return "\n".join(lines) + "\n"
+    lead, given = redundant(rows, lead)
+    cells = [(_header(c), [_paper_cell(c, row, digits, latex.number, "--", _latex_text) for row in rows])
+             for c in lead]
+    for norm in shown:
+        cells += [("error", [_paper_cell(norm, row, digits, latex.number, "--") for row in rows]),
+                  ("rate", [_rate(row.get(f"rate_{norm}"), "--", latex.rate) for row in rows])]
+    text = latex.table(cells, [(_header(n), 2) for n in shown], _caption(caption, lead, shown, rows, given),
+                       key or latex.label("rates"), len(rows))
+    return "% rate table written by signorini; needs \\usepackage{booktabs}\n" + text
 
 
-def _caption(caption, lead, shown, rows):
-    """The caption: the study, then what each short name means, the rate, and the failed levels."""
-    defined = [f"{names.name(c).tex}: {names.name(c).definition}" for c in lead + shown]
-    if "N" in lead and "h" not in lead and h_per_N(rows):
-        defined.insert(1, f"$h = {h_per_N(rows):.4g}/N$, the largest cell diameter")
-    text = (_tex_escape(caption) + ". " if caption else "") + "; ".join(
-        defined + ([RATE_DEFINITION] if shown else [])) + "."
-    return " ".join([text] + [_tex_escape(line) for line in _failures(rows)])
+def redundant(rows, lead):
+    """(lead without the columns the caption can state, those statements as LaTeX): h when N gives it
+    (stated whenever N is shown), ε when it equals h or is one value on every level."""
+    given, law = [], h_law(rows) if "N" in lead else None
+    if law is not None:
+        lead, given = [c for c in lead if c != "h"], [_h_statement(*law)]
+    eps = [row.get("epsilon") for row in rows]
+    if "epsilon" in lead and eps and all(isinstance(e, (int, float)) for e in eps):
+        if all(math.isclose(e, row["h"], rel_tol=1e-9) for e, row in zip(eps, rows)):
+            lead, given = [c for c in lead if c != "epsilon"], given + [r"$\varepsilon = h$"]
+        elif max(eps) == min(eps):
+            lead, given = [c for c in lead if c != "epsilon"], given + [rf"$\varepsilon = {latex.constant(eps[0])}$"]
+    return lead, given
 
 
-# plain text (a study's name and description) in LaTeX: the specials escaped, the usual Unicode as math
-TEX_TEXT = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#", "_": r"\_",
-            "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}", "^": r"\textasciicircum{}",
-            "α": r"$\alpha$", "ε": r"$\varepsilon$", "θ": r"$\theta$", "Γ": r"$\Gamma$", "π": r"$\pi$",
-            "δ": r"$\delta$", "Ω": r"$\Omega$", "≥": r"$\geq$", "≤": r"$\leq$", "→": r"$\to$", "−": "-",
-            "×": r"$\times$", "²": r"$^2$", "³": r"$^3$", "·": r"$\cdot$", "–": "--", "—": "---"}
+def h_law(rows):
+    """(c, k) when h = c N^{-1/k} on every level (k = 1: N cells per side; k = d: N cells of a uniformly
+    refined mesh), else None."""
+    if len(rows) < 2 or not all(row.get("h") and row.get("N") for row in rows):
+        return None
+    for k in (1, 2, 3):
+        products = [row["h"] * row["N"] ** (1 / k) for row in rows]
+        if max(products) - min(products) <= 1e-9 * products[0]:
+            return products[0], k
+    return None
 
 
-def _tex_escape(text):
-    return "".join(TEX_TEXT.get(char, char if char.isascii() else "?") for char in text)
+def _h_statement(c, k):
+    """h = c/N with N cells per side, or h = c N^{-1/k} with N cells: c as √m when it is one."""
+    root = round(c * c)
+    value = (rf"\sqrt{{{root}}}" if math.isclose(c * c, root, rel_tol=1e-9) and not c.is_integer()
+             else latex.constant(float(f"{c:.4g}")))
+    if k == 1:
+        return rf"$N$: cells per side, $h = {value}/N$ the largest cell diameter"
+    return rf"$N$: the number of cells, $h = {value}\,N^{{-1/{k}}}$ the largest cell diameter"
 
 
-def _paper_cell(column, row, digits, scientific, missing):
+def _known(column):
+    """Whether names.py names the column (its LaTeX is ours); any other name came from a file."""
+    return column in names.NORMS or column in names.COLUMNS or (column.endswith("_ref") and column[:-4] in names.NORMS)
+
+
+def _header(column):
+    """A column's LaTeX header: the short name of a known column, else its own name escaped."""
+    return names.name(column).tex if _known(column) else r"\texttt{" + _latex_text(column) + "}"
+
+
+def _definition(column):
+    return f"{names.name(column).tex}: {names.name(column).definition}" if _known(column) else None
+
+
+def _caption(caption, lead, shown, rows, given=()):
+    """The caption: the study (LaTeX, see caption_of), what the table leaves out, what each short name
+    means, the rate, and the failed levels."""
+    n_given = any(g.startswith("$N$:") for g in given)  # with the law of h
+    defined = [_definition(c) for c in lead + shown if _known(c) and not (c == "N" and n_given)]
+    given = [g for g in given if g not in caption]  # ε = h: said with the study already
+    text = (caption + ". " if caption else "") + "; ".join(
+        list(given) + defined + ([RATE_DEFINITION] if shown else [])) + "."
+    return " ".join([text] + [latex.escape(line) for line in _failures(rows)])
+
+
+def caption_of(name, cfg=None):
+    """The study in a caption, from its config's fields: d, α, ε as a formula, the exact solution (or the
+    data) typeset, Γ_C; LaTeX with every user-given text escaped."""
+    text = f"Study {latex.escape(name)}"
+    if cfg is None:
+        return text
+    parts = [f"$d = {cfg.dimension}$"]
+    if cfg.study_type == "signorini":
+        parts.append(r"the Signorini variational inequality ($\varepsilon = 0$)")
+    else:
+        law = config.LAWS[cfg.epsilon.law]
+        theta = "" if cfg.epsilon.theta == 1 and law.p != 0 else latex.constant(cfg.epsilon.theta)  # 1 h: h
+        law = law.tex.format(p=cfg.epsilon.p).strip()
+        parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$"]
+    parts += [_problem(cfg.problem), r"$\Gamma_C$: \texttt{" + latex.escape(cfg.contact) + "}"]
+    if cfg.mesh.kind == "gmsh":
+        parts.append(r"gmsh geometry \texttt{" + latex.escape(Path(cfg.mesh.geometry).stem) + "}")
+    return f"{text}: " + ", ".join(parts)
+
+
+def _problem(problem):
+    """$u = ...$ (manufactured), or the data $f = ...$ (and $g$); a formula too long for a caption named."""
+    given = [("u", problem.exact)] if problem.exact is not None else [("f", problem.f), ("g", problem.g)]
+    typeset = [(symbol, latex.expression(e.tree)) for symbol, e in given if e is not None]
+    if any(len(tex) > 160 for _, tex in typeset):  # unbreakable in a caption line
+        return "the solution or data as written in the study's config"
+    words = "exact solution" if problem.exact is not None else "data"
+    return words + " " + ", ".join(f"${symbol} = {tex}$" for symbol, tex in typeset)
+
+
+def _paper_cell(column, row, digits, scientific, missing, text=str):
     value = row.get(column)
     if column == "newton_its" and not row["converged"]:
         return f"{value} (failed)"
@@ -218,21 +364,27 @@ def _paper_cell(column, row, digits, scientific, missing):
         return missing
     if isinstance(value, bool):
         return "yes" if value else "no"
+    if isinstance(value, str):
+        return text(value)
     return scientific(value, digits) if isinstance(value, float) else str(value)
 
 
-def _rate(value, missing):
-    return missing if value is None else f"{value:.2f}"
+def _rate(value, missing, form="{:.2f}".format):
+    return missing if value is None else form(value)
 
 
 def _scientific(value, digits):
     return f"{value:.{digits}e}"
 
 
-def _latex_number(value, digits):
-    """2.303e-2: the narrowest notation a reader knows ($m \\cdot 10^{k}$ would not fit the page)."""
-    mantissa, exponent = f"{value:.{digits}e}".split("e")
-    return f"{mantissa}e{int(exponent)}"
+def _markdown_text(value):
+    """A text cell in a Markdown table: a | would end the cell."""
+    return value.replace("|", "\\|")
+
+
+def _latex_text(value):
+    """A text cell in LaTeX, escaped, cut at latex.MAX_TEXT characters (a table column, not a page)."""
+    return latex.escape(value if len(value) <= latex.MAX_TEXT else value[:latex.MAX_TEXT - 3] + "...")
 
 
 def _failures(rows, end="."):
@@ -373,21 +525,25 @@ def _csv_value(text):
 
 # --- everything a study leaves besides rates.csv and study.h5 -----------------------------------
 
-def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None):
-    """rates.md, rates.tex and (if `plots`) the figures of `study` into `folder`; the paths written.
-    `columns` as output.columns (default: the config's, else "paper"); `figure`: plots.Layout options."""
+def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None, suffix=""):
+    """rates<suffix>.md, rates<suffix>.tex and (if `plots`) the figures of `study` (their names with
+    `suffix` too) into `folder`; the paths written. `columns` as output.columns (default: the config's,
+    else "paper"); given, they also choose the plotted norms. `figure`: plots.Layout options."""
     folder = Path(folder or study.folder)
     folder.mkdir(parents=True, exist_ok=True)
-    caption = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
     chosen, proven = _columns_of(cfg, columns), proven_rates(cfg)
-    written = [folder / "rates.md", folder / "rates.tex"]
-    written[0].write_text(f"<!-- {caption} -->\n" + markdown_table(study.rows, digits, chosen, proven))
-    written[1].write_text(latex_table(study.rows, digits, caption, chosen, proven))
+    written = [folder / f"rates{suffix}.md", folder / f"rates{suffix}.tex"]
+    description = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
+    comment = description.replace("--", "- -")  # "-->" in a description would end the comment
+    written[0].write_text(f"<!-- {comment} -->\n" + markdown_table(study.rows, digits, chosen, proven))
+    written[1].write_text(latex_table(study.rows, digits, caption_of(study.name, cfg), chosen, proven,
+                                      key=latex.label(study.name, suffix)))
     if plots and study.rows:
         fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
         figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))
+        shown = choose(study.rows, chosen, proven)[1] if chosen != "paper" else None
         written += plotting.write_all(study.rows, folder, proven=proven, title=title(study, cfg),
-                                      fit_levels=fit_levels, **figure)
+                                      fit_levels=fit_levels, shown=shown, suffix=suffix, **figure)
     return written
 
 

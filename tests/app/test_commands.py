@@ -1,4 +1,5 @@
 """check, list, report and compare from the command line; run's --quiet and --verbose."""
+import re
 import subprocess
 import sys
 
@@ -133,9 +134,26 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert [line.split()[0] for line in out.splitlines()[2:4]] == ["theta1", "theta10"]  # under 2 header lines
-    assert (tmp_path / "results" / "compare" / "compare_convergence.pdf").exists()
+    compared = tmp_path / "results" / "compare"
+    assert (compared / "compare_convergence.pdf").exists()
+    table = (compared / "compare.csv").read_text().splitlines()
+    assert table[0].startswith("study,levels,finest_h,time_s,L2_finest,L2_fit,H1_finest,H1_fit")
+    assert [line.split(",")[0] for line in table[1:]] == ["theta1", "theta10"]
+    assert r"\label{tab:compare}" in (compared / "compare.tex").read_text() and (compared / "compare.md").exists()
     assert cli.main(["compare", *folders, "--label", "one"]) == cli.EXIT_BAD_INPUT
     assert "--label: give one per study" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("labels", [["X", "X"], None])
+def test_compare_refuses_one_label_for_two_studies(make_config, tmp_path, capsys, labels):
+    cfg = make_config()
+    results.write(cfg, studies.run_study(cfg))
+    folder = str(cfg.output_dir)
+    args = ["compare", folder, folder if labels is None else str(tmp_path / "results" / "t")]
+    args += [f"--label={label}" for label in labels or []]
+    assert cli.main(args + ["--output", str(tmp_path / "c")]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "names two of the studies" in err and not (tmp_path / "c").exists()
 
 
 def test_run_progress_and_quiet(tmp_path, capsys):
@@ -161,9 +179,13 @@ def test_report_columns_and_width_options(make_config, capsys):
     assert cli.main(["report", str(folder), "--columns", "all", "--width", "6in", "--per-norm"]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert "t_forms" in out and "dofs" in out  # every column
-    assert (folder / "convergence_L2.pdf").exists() and "| level |" in (folder / "rates.md").read_text()
+    assert (folder / "convergence_L2-all.pdf").exists() and "| level |" in (folder / "rates-all.md").read_text()
+    assert cli.main(["report", str(folder), "--no-plots"]) == cli.EXIT_OK  # the study's own rates.tex
+    own = (folder / "rates.tex").read_text()
     assert cli.main(["report", str(folder), "--no-plots", "--columns", "N,L2"]) == cli.EXIT_OK
-    assert (folder / "rates.md").read_text().splitlines()[1] == "| N | L² error | L² rate |"
+    assert (folder / "rates-N-L2.md").read_text().splitlines()[1] == "| N | L² error | L² rate |"
+    assert (folder / "rates.tex").read_text() == own  # beside the study's own table, never over it
+    assert r"\label{tab:t-N-L2}" in (folder / "rates-N-L2.tex").read_text()
     assert cli.main(["report", str(folder), "--width", "2pt"]) == cli.EXIT_BAD_INPUT
     assert "--width: must be between 100pt and 2000pt" in capsys.readouterr().err
 
@@ -208,3 +230,18 @@ def test_closed_stdout_ends_quietly(make_config, command):
     status = subprocess.run(["bash", "-o", "pipefail", "-c", f"{sys.executable} -m signorini_cli.app.cli "
                              f"{' '.join(argv)} | true"], capture_output=True, timeout=120)
     assert status.returncode == 0 and status.stderr == b""
+
+
+@pytest.mark.fast
+def test_init_names_no_path_of_this_machine(capsys):
+    assert cli.main(["init"]) == cli.EXIT_OK
+    out = capsys.readouterr().out
+    assert not re.search(r"(^|[\s'\"(:])/\w", out, re.M)  # no absolute path: the template is for any machine
+    assert str(commands.SHIPPED_CONFIGS.parent) not in out and not re.search(r"issue\s*#?\d", out, re.I)
+
+
+@pytest.mark.fast
+def test_help_says_what_the_tool_is_in_one_line():
+    text = cli.build_parser().format_help()
+    description = text.split("\n\n")[1]
+    assert "\n" not in description and "convergence studies" in description and "compliance" in description

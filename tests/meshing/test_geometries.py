@@ -248,3 +248,13 @@ def test_two_ranks_match_one_gmsh(shared_tmp, mesh):
         assert p.extra == pytest.approx(s.extra, rel=ROUND_OFF)
         for norm in ("L2", "H1"):
             assert p.errors[norm] == pytest.approx(s.errors[norm], rel=1e-8)  # the parallel tolerance
+
+
+@pytest.mark.fast
+def test_users_geometry_cached_beside_it_shipped_ones_in_meshes_cache(tmp_path):
+    geo = tmp_path / "mine.geo"
+    geo.write_text(geometry_files.geometry_path("half_disk").read_text())
+    assert geometry_files.cache_file("", geo, 0.5).parent == tmp_path / "signorini-meshes"  # not the tool's
+    shipped = geometry_files.geometry_path("half_disk")
+    assert geometry_files.cache_file("", shipped, 0.5).parent == geometry_files.CACHE_DIR
+    assert geometry_files.cache_file(str(tmp_path / "c"), geo, 0.5).parent == tmp_path / "c"  # mesh.cache wins

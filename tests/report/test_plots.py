@@ -1,4 +1,5 @@
 """Figures: written headless (Agg, no pyplot), triangles labelled with proven or fitted rates, overlays."""
+import re
 import subprocess
 import sys
 
@@ -87,7 +88,7 @@ def page_checks(fig, width_pt):
     assert min(sizes) >= 8
     for ax in fig.axes:
         legend = ax.get_legend()
-        if legend is not None:
+        if legend is not None and ax.axison:  # an axes switched off holds a figure's one legend
             box = legend.get_window_extent(renderer)
             assert not box.overlaps(ax.get_window_extent(renderer)), "legend on the data"
 
@@ -124,15 +125,63 @@ def test_work_precision_leaves_compile_time_out_failed_levels_in():
     assert "JIT excluded" in fig.axes[0].get_xlabel()  # JIT: the form compilation
 
 
-def test_compare_is_a_grid_of_one_panel_per_norm(tmp_path):
+def test_compare_is_a_grid_of_one_panel_per_norm_with_one_legend(tmp_path):
     studies = {"a": synthetic({"L2": 2.0, "H1": 1.0, "pos_gc": 1.0}), "b": synthetic({"L2": 1.5})}
     paths = plots.write_comparison(studies, tmp_path)
     assert {p.stem for p in paths} == {"compare_convergence", "compare_work_precision", "compare_newton"}
     with plots.styled():
         fig = plots.compare_convergence(studies)
-    assert [len(ax.lines) for ax in fig.axes] == [2, 1, 1]  # L2: a and b; H1, pos_gc: a only
+    assert [len(ax.lines) for ax in fig.axes[:3]] == [2, 1, 1]  # L2: a and b; H1, pos_gc: a only
     rows_of_panels = {round(ax.get_position().y0, 6) for ax in fig.axes}
     assert len(rows_of_panels) == 2  # 345 pt hold two panels a row: three panels take two rows
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend()] + fig.legends
+    assert len(legends) == 1 and not fig.axes[3].axison  # in the grid's free place
+    assert [t.get_text() for t in legends[0].get_texts()] == ["a", "b"]
+    four = {"a": synthetic({"L2": 2.0, "H1": 1.0}), "b": synthetic({"L2": 1.5, "H1": 1.0})}
+    with plots.styled():
+        fig = plots.compare_convergence(four)
+    assert len(fig.axes) == 2 and len(fig.legends) == 1 and not any(ax.get_legend() for ax in fig.axes)
+
+
+# a log axis' tick labels: 10^k (LogFormatterMathtext), or m×10^k on an axis spanning under two decades
+TICK = re.compile(r"\$\\mathdefault\{10\^\{-?\d+\}\}\$|\$(\d(\.\d)?\\times)?10\^\{-?\d+\}\$")
+SIX = {"L2": 2.0, "H1": 1.0, "L2_gc": 2.0, "pos_gc": 2.0, "pos_gc_scaled": 3.0, "energy_err": 1.0}
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("width", [246.0, 345.0, 510.0])
+@pytest.mark.parametrize("count", range(1, 8))
+def test_panels_fill_their_grid_and_stay_column_sized(width, count):
+    sizes = plots.norm_groups(count, width)
+    ncols = max(1, int(width // plots.MIN_PANEL_PT))
+    assert sum(sizes) == count and max(sizes) - min(sizes) <= 1
+    assert len(sizes) <= ncols or len(sizes) % ncols == 0  # no empty place in the grid
+    assert plots.figure_height(len(sizes), width, max(sizes)) <= plots.MAX_ASPECT * width
+
+
+def test_journal_column_figure_at_most_300pt_tall():
+    # 246 pt: a two-column journal's \columnwidth; six norms reflow into one panel
+    with plots.styled():
+        fig = plots.convergence(synthetic(SIX), proven={"L2": 2, "H1": 1}, title="t", width=246.0)
+    assert fig.get_figheight() * 72 <= 300 and len(fig.axes) == 1
+    page_checks(fig, 246.0)
+
+
+@pytest.mark.parametrize("width", [246.0, 345.0])
+def test_texts_inside_the_axes_clear_of_data_one_tick_format(width):
+    with plots.styled():  # drawn as saved: the style's serif font resolves at drawing time
+        fig = plots.convergence(synthetic(SIX), proven={"L2": 2, "H1": 1, "pos_gc": 1}, width=width)
+        renderer = FigureCanvasAgg(fig).get_renderer()
+        fig.draw(renderer)
+    for ax in fig.axes:
+        box = ax.get_window_extent(renderer)
+        points = np.vstack([ax.transData.transform(line.get_xydata()) for line in ax.lines])
+        for text in [t.get_window_extent(renderer) for t in ax.texts]:
+            assert box.x0 <= text.x0 and text.x1 <= box.x1 and box.y0 <= text.y0 and text.y1 <= box.y1
+            assert not any(text.contains(x, y) for x, y in points)  # no marker under a label
+        for axis in (ax.xaxis, ax.yaxis):
+            labels = [t.get_text() for t in axis.get_ticklabels() if t.get_text()]
+            assert labels and all(TICK.fullmatch(t) for t in labels), labels
 
 
 def test_single_level_study_plots_without_triangles(tmp_path):

@@ -34,18 +34,23 @@ def test_markdown_table_known():
 
 
 def test_latex_table_grouped_with_definitions_in_caption():
-    lines = tables.latex_table(KNOWN[:2], digits=3, caption="Study t").splitlines()
-    assert lines[:3] == [r"\begin{table}", r"\centering", r"\setlength{\tabcolsep}{3pt}"]
-    caption = lines[3]
-    assert caption.startswith(r"\caption{Study t. $N$: cells per side") and "$h = 2/N$" in caption
+    lines = tables.latex_table(KNOWN[:2], digits=3, caption="Study t", key="tab:t").splitlines()
+    assert lines[0].endswith(r"needs \usepackage{booktabs}")
+    assert lines[1] == r"% layout: fits \textwidth at the normal size"
+    assert lines[2:4] == [r"\begin{table}", r"\centering"]
+    caption = lines[4]
+    # h = 2/N and ε = h on every level: the caption says so, the table shows neither column
+    assert caption.startswith(r"\caption{Study t. $N$: cells per side, $h = 2/N$ the largest cell diameter; "
+                              r"$\varepsilon = h$; its: Newton iterations")
     assert r"$L^2$: $\|u-u_h\|_{L^2(\Omega)}$" in caption and caption.endswith("successive levels.}")
-    assert lines[4:] == [
-        r"\begin{tabular}{rrrrrrr}", r"\toprule",
-        r" &  &  & \multicolumn{2}{c}{$L^2$} & \multicolumn{2}{c}{$H^1$} \\",
-        r"\cmidrule(lr){4-5} \cmidrule(lr){6-7}",
-        r"$N$ & $\varepsilon$ & its & error & rate & error & rate \\", r"\midrule",
-        r"8 & 2.500e-1 & 5 & 1.000e-2 & -- & 5.000e-1 & -- \\",
-        r"16 & 1.250e-1 & 5 & 2.500e-3 & 2.00 & 2.500e-1 & 1.00 \\",
+    assert lines[5:] == [
+        r"\label{tab:t}", r"\setlength{\tabcolsep}{3pt}",
+        r"\begin{tabular}{rrrrrr}", r"\toprule",
+        r" &  & \multicolumn{2}{c}{$L^2$} & \multicolumn{2}{c}{$H^1$} \\",
+        r"\cmidrule(lr){3-4} \cmidrule(lr){5-6}",
+        r"$N$ & its & error & rate & error & rate \\", r"\midrule",
+        r"8 & 5 & $1.000\times10^{-2}$ & -- & $5.000\times10^{-1}$ & -- \\",
+        r"16 & 5 & $2.500\times10^{-3}$ & 2.00 & $2.500\times10^{-1}$ & 1.00 \\",
         r"\bottomrule", r"\end{tabular}", r"\end{table}"]
 
 
@@ -90,8 +95,10 @@ def test_terminal_table_fits_120_columns_all_one_option_away():
     default = tables.format_table(rows, DEMO).splitlines()
     assert max(map(len, default)) <= 120 and len(default) == 2 + len(rows)
     everything = tables.format_table(rows, DEMO, columns="all").splitlines()
-    assert all(column in everything[1] for column in ("dofs", "t_forms", "converged"))
-    assert everything[0].split() == ["L2", "H1", "L2_gc", "pos_gc", "pos_gc_scaled", "energy_err"]
+    assert max(map(len, everything)) <= 120  # wrapped into blocks, each led by the level again
+    blocks = "\n".join(everything).split("\n\n")
+    assert all(block.splitlines()[1 if k else 0].split()[0] == "level" for k, block in enumerate(blocks))
+    assert all(column in "\n".join(everything) for column in ("dofs", "t_forms", "converged", "energy_err"))
 
 
 def test_columns_list_and_unknown_column():
@@ -198,3 +205,45 @@ def test_damaged_h5_falls_back_to_rates_csv(partial_study, damage, caplog):
     cut_csv(folder)
     with pytest.raises(tables.DamagedResults, match="study.h5: damaged.*; .*rates.csv: damaged"):
         tables.load(folder)
+
+
+@pytest.mark.fast
+def test_signorini_problem_table_shows_contact_set_not_eps():
+    # ε = 0 on every level (the variational inequality): no ε column; the contact set's measure instead
+    rows = [dict(row, epsilon=0.0, contact_measure=0.5) for row in demo_like(3)]
+    lead, _ = tables.choose(rows, "paper")
+    assert lead == ["N", "newton_its", "contact_measure"]
+    assert max(map(len, tables.format_table(rows).splitlines())) <= 120
+
+
+@pytest.mark.fast
+def test_reference_norms_scaled_left_out_beside_unscaled():
+    measured = ["L2_ref", "H1_ref", "pos_gc_ref", "pos_gc_scaled_ref"]
+    proven = {n: 1.0 for n in measured}
+    assert tables.paper_norms(measured, proven) == ["L2_ref", "H1_ref", "pos_gc_ref"]
+
+
+def test_columns_choose_the_plotted_norms(tmp_path, monkeypatch):
+    from signorini_cli.report import plots
+    drawn, convergence = [], plots.convergence
+
+    def recorded(rows, *args):
+        fig = convergence(rows, *args)
+        drawn.append([line.get_label().split()[0] for ax in fig.axes for line in ax.lines])
+        return fig
+    monkeypatch.setattr(plots, "convergence", recorded)
+    study = tables.Study("demo", tmp_path, demo_like(3))
+    tables.write(study, DEMO, columns=["N", "H1"], suffix="-N-H1")
+    assert (tmp_path / "rates-N-H1.tex").exists() and not (tmp_path / "rates.tex").exists()
+    assert drawn == [["H¹"]]
+
+
+@pytest.mark.fast
+def test_wide_rows_wrapped_at_120_columns_nothing_lost():
+    # an ε → 0 reference table: about 20 columns of .3e numbers, some 200 characters on one line
+    rows = [{"N": n, **{f"column_{k}": 1.0 / (n + k) for k in range(20)}} for n in (8, 16, 32)]
+    lines = tables.format_rows(rows).splitlines()
+    assert max(map(len, lines)) <= 120
+    text = "\n".join(lines)
+    assert all(f"column_{k}" in text for k in range(20)) and text.count("\n\n") >= 1
+    assert all(block.splitlines()[0].split()[0] == "N" for block in text.split("\n\n"))
