@@ -14,6 +14,7 @@ from ..record import results
 from . import latex
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
+TERMINAL_WIDTH = 120  # columns of a terminal table; wider ones wrap into blocks
 PAPER_LEADING = ("N", "h", "epsilon", "newton_its")  # what a paper shows before the errors
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
