@@ -67,10 +67,9 @@ def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
     texts = {name: csvfile.text(rows) for name, rows in named.items() if "/" not in name}
-    summary_rows = ()
+    summary_rows = summary_record(summary) if summary is not None else ()
     if summary is not None:
         texts["summary"] = csvfile.text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
-        summary_rows = (_summary_head(summary), verdict.summary_rows(summary))
     texts = {name: (text or csvfile.text([], _HEADERS.get(name))) for name, text in texts.items()}
     writes = [(folder / f"{name}.csv", functools.partial(Path.write_text, data=text)) for name, text in texts.items()]
     levels = kind.levels_of(result)
@@ -85,11 +84,12 @@ def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
 _HEADERS = {"work_precision": ("norm", "level", "N", "dofs", "error", "time_s", "cumulative_time_s")}
 
 
-def _summary_head(summary):
+def summary_record(summary):
+    """(attributes, rows) of the verdict as study.h5 holds it."""
     head = {"fit_levels": summary.fit_levels, "tolerance": summary.tolerance, "expectations_met": summary.met}
     if summary.notes:
         head["notes"] = "\n".join(summary.notes)
-    return head
+    return head, verdict.summary_rows(summary)
 
 
 def write_status(folder, status):
