@@ -134,3 +134,10 @@ bench/results.md: scripts/bench.py scripts/provenance.py $(wildcard bench/config
 precision: docs/precision.md
 docs/precision.md: scripts/precision.py scripts/provenance.py $(CONFIGS) $(PACKAGE) | $(STAMP)
 	$(PY) scripts/precision.py --page $@
+
+.PHONY: results-format
+# docs/results-format.md from the writer's own descriptions and the study.h5 of a two-level demo run
+results-format: docs/results-format.md
+docs/results-format.md: scripts/results_format_page.py scripts/provenance.py signorini_cli/record/h5.py $(PACKAGE) | $(STAMP)
+	$(PY) scripts/results_format_page.py > $@.tmp
+	@mv $@.tmp $@; echo "wrote $@"

@@ -33,28 +33,29 @@ ROOT = {
 }
 # a table column -> (units, description); `1` is dimensionless, `length` the unit of the mesh coordinates
 COLUMNS = {
-    "level": ("1", "the level's index, 0 for the coarsest mesh"),
-    "N": ("1", "cells per side (gmsh and file meshes: the number of cells)"),
-    "h": ("length", "the largest cell diameter"),
-    "dofs": ("1", "number of unknowns (global)"),
-    "epsilon": ("1", "the compliance parameter ε of the level (0: the Signorini inequality)"),
-    "converged": ("", "whether the level's solve met the solver's tolerances (FALSE/TRUE)"),
-    "newton_its": ("1", "Newton iterations of the level's last solve"),
-    "linear_its": ("1", "Krylov iterations, summed over the level's Newton steps"),
+    "level": ("1", "the level's index, 0 the coarsest mesh"),
+    "N": ("1", "cells per side (mesh.refinements; gmsh and file meshes: the number of cells)"),
+    "h": ("length", "the largest cell diameter, max over ranks"),
+    "dofs": ("1", "global number of unknowns"),
+    "epsilon": ("1", "the level's ε = law(h) (0: the Signorini inequality)"),
+    "converged": ("", "the SNES outcome (FALSE/TRUE)"),
     "reason": ("", "PETSc's converged or diverged reason"),
-    "final_residual": ("1", "the last nonlinear residual norm"),
-    "time_s": ("s", "wall time of the level (mesh to measures; reference solves excluded)"),
-    "cumulative_time_s": ("s", "wall time of the study up to and including this level"),
-    "L2": ("1", "||u - u_h|| in L2(Ω)"),
-    "H1": ("1", "|u - u_h| in H1(Ω), the seminorm"),
+    "newton_its": ("1", "Newton iterations of the level"),
+    "linear_its": ("1", "Krylov iterations, total over the level"),
+    "final_residual": ("1", "||F(u_h)||_2 at the last Newton iterate (carries 1/ε: large for tiny ε)"),
+    "time_s": ("s", "the level's wall time (mesh to measures), max over ranks; not t_output, a reference solve "
+                    "or the linear floor"),
+    "cumulative_time_s": ("s", "time_s summed over the levels so far"),
+    "L2": ("1", "||u - u_h|| in L2(Ω) (manufactured scenes)"),
+    "H1": ("1", "|u - u_h| in H1(Ω), the seminorm (manufactured scenes)"),
     "L2_gc": ("1", "||u - u_h|| in L2(Γ_C)"),
     "pos_gc": ("1", "||[u]_+ - [u_h]_+|| in L^{α+1}(Γ_C)"),
     "pos_gc_scaled": ("1", "pos_gc to the power (α+1)/2 (paper Corollary 3.2 ii)"),
-    "energy_err": ("1", "the energy error of paper Lemma 3.1"),
-    "diff_L2": ("1", "||u_h - u_{h'}|| in L2(Ω) against the previous level"),
-    "diff_H1": ("1", "|u_h - u_{h'}| in H1(Ω) against the previous level"),
-    "penetration": ("length", "max over Γ_C of [u_h]_+ (ε-sweeps: of [u_εh - u_Sh]_+ on Γ_C)"),
-    "contact_measure": ("length^(d-1)", "measure of the contact set {u_h = 0 or > 0} on Γ_C"),
+    "energy_err": ("1", "(H1² + pos_gc^{α+1}/ε)^{1/2}, the energy error of paper Lemma 3.1"),
+    "diff_L2": ("1", "||u_h - u_{h'}|| in L2(Ω) against the previous level's solution"),
+    "diff_H1": ("1", "|u_h - u_{h'}| in H1(Ω) against the previous level's solution"),
+    "penetration": ("length", "max over Γ_C of [u_h]_+ (ε-sweeps: of [u_εh - u_Sh]_+)"),
+    "contact_measure": ("length^(d-1)", "measure of the discrete contact set on Γ_C"),
     "contact_force": ("1", "(1/ε) ∫_Γc [u_h]_+^α, the total contact force"),
     "contact_nodes": ("1", "vertices of Γ_C in contact (the Signorini inequality's active set)"),
     "pressure_max": ("1", "the largest contact pressure on Γ_C"),
@@ -66,12 +67,13 @@ COLUMNS = {
     "h_min": ("length", "the smallest cell diameter"),
     "gamma_c_measure": ("length^(d-1)", "|Γ_C| of the discrete mesh"),
     "gamma_c_quasi_uniformity": ("1", "max h_F / min h_F over the facets of Γ_C"),
-    "continuation_steps": ("1", "solves of the ε continuation"),
-    "linear_fallback": ("", "whether the iterative linear solve fell back to the direct one (FALSE/TRUE)"),
-    "final_correction": ("1", "the norm of the last Newton correction"),
-    "condition": ("1", "the Jacobian's condition number (small levels only)"),
-    "peak_memory_mb": ("MB", "peak resident memory at the level's end, summed over ranks"),
-    "peak_memory_mesh_mb": ("MB", "peak resident memory right after the level's mesh"),
+    "continuation_steps": ("1", "SNES solves of the ε-continuation, 0 without"),
+    "linear_fallback": ("", "an iterative linear solve failed and the level went on with MUMPS (FALSE/TRUE)"),
+    "final_correction": ("1", "the last Newton correction over ||u_h||: the solve's own error estimate"),
+    "condition": ("1", "λ_max/λ_min of the Jacobian at u_h on the free dofs (small levels only)"),
+    "peak_memory_mb": ("MiB", "peak resident set size so far (max over ranks), at the level's end"),
+    "peak_memory_mesh_mb": ("MiB", "peak resident set size so far, right after the level's mesh"),
+    "t_linear_floor": ("s", "one assembly and linear solve of the Jacobian at u_h (solver.linear_floor)"),
     "floor_ratio": ("1", "t_newton / t_linear_floor"),
     "alpha": ("1", "the exponent α of [u]_+^α"),
     "L2_gamma_c": ("1", "||u_εh - u_Sh|| in L2(Γ_C)"),
@@ -198,7 +200,7 @@ def _write_level(group, lv, row):
     for norm, value in lv.errors.items():  # raw errors, also of a level that did not converge
         group.attrs[f"measured_{norm}"] = value
     group.attrs["description"] = LEVEL
-    group.attrs["units"] = "; ".join(f"{c}: {column_info(c)[0]}" for c in row if column_info(c)[0])
+    group.attrs["units"] = "those of the /table datasets of the same names"
     datasets = {"residuals": np.array(lv.outcome.residuals, dtype=np.float64)}
     steps = lv.outcome.steps
     if steps:
@@ -295,6 +297,26 @@ def plain(value):
 
 def _first_line(err):
     return str(err).splitlines()[0] if str(err) else type(err).__name__
+
+
+def outline(path):
+    """(name, kind, units, description) of every group and dataset in `path`, in file order: the file
+    explained by its own attributes."""
+    import h5py
+    found = []
+
+    def visit(name, node):
+        kind = "group"
+        if isinstance(node, h5py.Dataset):
+            kind = f"{'string' if node.dtype.kind in 'SO' else node.dtype}, {node.shape[0] if node.shape else 1}"
+        found.append((name, kind, plain(node.attrs.get("units", "")), plain(node.attrs.get("description", ""))))
+    try:
+        with h5py.File(path, "r") as h5:
+            found.append(("/", "group", plain(h5.attrs["units"]), plain(h5.attrs["description"])))
+            h5.visititems(visit)
+    except (OSError, KeyError) as err:
+        raise Damaged(f"{path}: damaged, not readable as HDF5 ({_first_line(err)})") from None
+    return found
 
 
 # --- the documentation ------------------------------------------------------------------------------
