@@ -18,13 +18,15 @@ from mpi4py import MPI
 from .. import __version__, config, studies
 from ..analysis import verdict
 from ..config import canonical, fingerprint
+from ..studies.level import WORK_PRECISION_COLUMNS
 from ..system import files
 from . import csvfile, h5
 
 logger = logging.getLogger(__name__)
 # one line: running (k of n levels done) | complete | interrupted at level k | failed at level k: reason
 STATUS_FILE = "status.txt"
-CSV_NAMES = {"summary": verdict.SUMMARY_COLUMNS}  # tables with a fixed header, written also when empty
+# the header a table without rows still has (the CSV of a study before its first error)
+EMPTY_HEADERS = {"work_precision": WORK_PRECISION_COLUMNS}
 
 
 def is_timing(column):
@@ -47,12 +49,8 @@ def write(cfg, result, comm=MPI.COMM_WORLD, status=None):
 
 
 def main_rows(named):
+    """The rows of the first (main) of a study type's tables, [] before any."""
     return next(iter(named.values()), [])
-
-
-def main_table(cfg, result):
-    """The rows of the study's main table (rates, sweep or total)."""
-    return main_rows(studies.of(cfg.study_type).tables(cfg, result))
 
 
 def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
@@ -70,7 +68,7 @@ def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
     summary_rows = summary_record(summary) if summary is not None else ()
     if summary is not None:
         texts["summary"] = csvfile.text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
-    texts = {name: (text or csvfile.text([], _HEADERS.get(name))) for name, text in texts.items()}
+    texts = {name: (text or csvfile.text([], EMPTY_HEADERS.get(name))) for name, text in texts.items()}
     writes = [(folder / f"{name}.csv", functools.partial(Path.write_text, data=text)) for name, text in texts.items()]
     levels = kind.levels_of(result)
     attrs = record_attrs(cfg, levels, mpi_size, status)
@@ -79,9 +77,6 @@ def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
     if status is not None:
         writes.append((folder / STATUS_FILE, functools.partial(Path.write_text, data=status + "\n")))
     files.replace_all(writes)
-
-
-_HEADERS = {"work_precision": ("norm", "level", "N", "dofs", "error", "time_s", "cumulative_time_s")}
 
 
 def summary_record(summary):
