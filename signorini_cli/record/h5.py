@@ -54,7 +54,7 @@ COLUMNS = {
     "energy_err": ("1", "(H1² + pos_gc^{α+1}/ε)^{1/2}, the energy error of paper Lemma 3.1"),
     "diff_L2": ("1", "||u_h - u_{h'}|| in L2(Ω) against the previous level's solution"),
     "diff_H1": ("1", "|u_h - u_{h'}| in H1(Ω) against the previous level's solution"),
-    "penetration": ("length", "max over Γ_C of [u_h]_+ (ε-sweeps: of [u_εh - u_Sh]_+)"),
+    "penetration": ("length", "max over Γ_C of [u_h]_+ (ε-sweeps: of [u_εh]_+)"),
     "contact_measure": ("length^(d-1)", "measure of the discrete contact set on Γ_C"),
     "contact_force": ("1", "(1/ε) ∫_Γc [u_h]_+^α, the total contact force"),
     "contact_nodes": ("1", "vertices of Γ_C in contact (the Signorini inequality's active set)"),
