@@ -199,6 +199,10 @@ def load_h5(path):
     tables = record.tables
     main = _with_level_attrs(next(iter(tables.values())), record.levels)
     _check_rows(main, path, studies.of(kind).UNIT)
+    try:
+        studies.of(kind).reported(None, tables)  # every table its type reports is there
+    except KeyError as err:
+        raise DamagedResults(f"{path}: damaged, no table {err} (study_type {kind})") from None
     text = attrs.get("config_resolved") or attrs.get("config", "")
     return Study(attrs.get("study", path.parent.name), path.parent, main, text, attrs, kind, tables)
 

@@ -105,3 +105,16 @@ def test_compare_overlays_every_type(finished, tmp_path, capsys):
     for label in labels:
         assert any(line.strip().startswith(label) for line in table), label
     assert (tmp_path / "c" / "compare_convergence.pdf").exists()
+
+
+def test_report_names_a_missing_table(finished, tmp_path, capsys):
+    """A record without a table its type reports is damaged: one line, exit 2, no traceback."""
+    import shutil
+    import h5py
+    folder = tmp_path / "sweep"
+    shutil.copytree(finished["epsilon_sweep"], folder)
+    with h5py.File(folder / "study.h5", "a") as h5:
+        del h5["fitted"]
+    assert cli.main(["report", str(folder)]) == cli.EXIT_BAD_INPUT
+    assert capsys.readouterr().err == (f"signorini: error: {folder}: {folder}/study.h5: damaged, no table "
+                                       "'fitted' (study_type epsilon_sweep)\n")
