@@ -82,7 +82,7 @@ def reused(cfg):
     record = h5.read(path)
     if record.attrs.get("config_hash") != config.fingerprint(cfg) or record.attrs.get("status") != "complete":
         return None
-    return 0 if all(row["converged"] for row in next(iter(record.tables.values()))) else 1
+    return 0 if all(row["converged"] for row in record.tables.get(record.main, [])) else 1
 
 
 def fmt(value, spec=".3e"):

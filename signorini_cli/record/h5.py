@@ -241,6 +241,7 @@ class Record:
     attrs: dict
     tables: dict
     levels: dict = field(default_factory=dict)
+    main: str = None  # the main table's name; None when the file has no /table
 
 
 def read(path):
@@ -256,9 +257,10 @@ def read(path):
         raise
     except (OSError, KeyError, ValueError, TypeError) as err:  # h5py: truncated, or not HDF5 at all
         raise Damaged(f"{path}: damaged, not readable as HDF5 ({_first_line(err)})") from None
-    if main is not None and MAIN in tables:  # the main table first, under its own name
-        tables = dict({plain(main): tables.pop(MAIN)}, **tables)
-    return Record(attrs, tables, levels)
+    if main is None or MAIN not in tables:
+        return Record(attrs, tables, levels)
+    main = plain(main)  # the main table first, under its own name
+    return Record(attrs, dict({main: tables.pop(MAIN)}, **tables), levels, main)
 
 
 def _read_node(name, node, tables, levels):

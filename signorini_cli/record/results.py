@@ -194,7 +194,7 @@ def load_h5(path):
     kind = attrs.get("study_type", "refinement")
     if kind not in studies.STUDY_TYPES:
         raise DamagedResults(f"{path}: damaged, study_type {kind!r} is not one this version knows")
-    if not record.tables:
+    if record.main is None:
         raise DamagedResults(f"{path}: damaged, no table group")
     tables = record.tables
     main = _with_level_attrs(next(iter(tables.values())), record.levels)

@@ -45,7 +45,9 @@ def read_levels(cfg):
     except h5.Damaged as err:
         raise ConfigError("--resume", f"{err}; {FORCE}") from None
     check_same_config(cfg, record.attrs, path)
-    rows = next(iter(record.tables.values()), [])
+    if record.main is None:
+        raise ConfigError("--resume", f"{path} is damaged: no table group; {FORCE}")
+    rows = record.tables[record.main]
     indices = sorted(record.levels)
     if indices != list(range(len(indices))) or len(rows) != len(indices):
         missing = sorted(set(range(max(indices + [len(rows) - 1]) + 1)) - set(indices))

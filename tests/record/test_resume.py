@@ -208,3 +208,10 @@ def test_resume_reads_levels_by_index_and_keeps_every_row(tmp_path):
     results.write(cfg, levels[:1])  # as a run stopped after level 0 leaves it
     assert cli.main(["run", path, "--resume", "--quiet"]) == cli.EXIT_OK
     assert same_table(rows(tmp_path), complete)
+
+
+def test_resume_refuses_a_record_without_its_table(tmp_path, capsys):
+    path, folder = stopped_study(tmp_path, (4, 8))
+    with h5py.File(folder / "study.h5", "a") as h5:
+        del h5["table"]
+    refused_once(path, capsys, "no table group")
