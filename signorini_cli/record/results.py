@@ -197,7 +197,11 @@ def load_h5(path):
     if record.main is None:
         raise DamagedResults(f"{path}: damaged, no table group")
     tables = record.tables
-    main = _with_level_attrs(next(iter(tables.values())), record.levels)
+    if record.main == h5.MAIN:  # written before the main table carried its name: the type's first table
+        first = next(iter(studies.of(kind).tables(None, [])), h5.MAIN)
+        tables = dict({first: tables.pop(h5.MAIN)}, **tables)
+    first = next(iter(tables))
+    main = tables[first] = _with_level_attrs(tables[first], record.levels)
     _check_rows(main, path, studies.of(kind).UNIT)
     try:
         studies.of(kind).reported(None, tables)  # every table its type reports is there
