@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..studies.level import SPEC_COLUMNS
+from ..studies.level import LEADING_COLUMNS
 
 NAME = "study.h5"
 MAIN = "table"  # the group of the study's main table (rates.csv, sweep.csv or total.csv)
@@ -337,7 +337,7 @@ def describe():
         f"TRUE = 1 on `int8`; an integer column with empty cells has the attribute `missing` = {MISSING_INT}. Other",
         "numbers are `float64`, NaN where the CSV cell is empty; text columns are byte strings.", ""]
     lines += [f"- `{name}`: {what}" for name, what in TABLES.items()]
-    lines += ["", f"The rate table's first columns: `{','.join(SPEC_COLUMNS)}`.", "",
+    lines += ["", f"The rate table's first columns: `{','.join(LEADING_COLUMNS)}`.", "",
               "### Columns", ""] + table(dict(COLUMNS, **families), "column")
     lines += ["", "### Groups `level_00`, `level_01`, …", "", LEVEL + ".", ""] + table(LEVEL_DATASETS, "dataset")
     lines += ["", "### Group `verification`", "", VERIFICATION + "."]

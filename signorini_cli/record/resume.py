@@ -6,11 +6,11 @@ import math
 from .. import config, studies
 from ..config import ConfigError
 from ..solve import solver
-from ..studies.level import EXTRA_COLUMNS, NORMS, SPEC_COLUMNS, Level
+from ..studies.level import EXTRA_COLUMNS, NORMS, LEADING_COLUMNS, Level
 from . import h5, results
 
 # row columns that Level's own fields and Outcome produce (level.rate_table); any other is Level.extra
-OWN_COLUMNS = (set(SPEC_COLUMNS) | set(EXTRA_COLUMNS) | {"cumulative_time_s"} | {f"rate_{norm}" for norm in NORMS})
+OWN_COLUMNS = (set(LEADING_COLUMNS) | set(EXTRA_COLUMNS) | {"cumulative_time_s"} | {f"rate_{norm}" for norm in NORMS})
 FORCE = "use --force to start over"
 
 

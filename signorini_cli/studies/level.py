@@ -6,8 +6,9 @@ from ..analysis import rates
 from ..solve import solver
 
 NORMS = ("L2", "H1")  # the errors against the exact solution every level measures when it has one
-SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
-                "L2", "rate_L2", "H1", "rate_H1", "time_s")
+# the columns every rate table (rates.csv) starts with, in this order
+LEADING_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
+                   "L2", "rate_L2", "H1", "rate_H1", "time_s")
 EXTRA_COLUMNS = ("reason", "linear_its", "final_residual")
 WORK_PRECISION_COLUMNS = ("norm", "level", "N", "dofs", "error", "time_s", "cumulative_time_s")
 

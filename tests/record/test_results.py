@@ -1,4 +1,4 @@
-"""rates.csv and study.h5: SPEC columns, written after every level, readable when cut short."""
+"""rates.csv and study.h5: the leading columns, written after every level, readable when cut short, self-describing."""
 import csv
 import re
 
@@ -16,7 +16,7 @@ def test_half_finished_study_is_readable(partial_study):
     with open(cfg.output_dir / "rates.csv") as f:
         rows = list(csv.DictReader(f))
     assert [row["N"] for row in rows] == ["4", "8"]
-    assert list(rows[0])[:len(studies.level.SPEC_COLUMNS)] == list(studies.level.SPEC_COLUMNS)
+    assert list(rows[0])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
     assert rows[0]["rate_L2"] == "" and float(rows[1]["rate_L2"]) > 1
     assert rows[1]["converged"] == "true"
     with h5py.File(cfg.output_dir / "study.h5") as h5:
@@ -48,7 +48,7 @@ def test_status_and_config_hash_recorded(make_config):
     assert (cfg.output_dir / results.STATUS_FILE).read_text() == "complete\n"
     with h5py.File(cfg.output_dir / "study.h5") as h5:
         assert h5.attrs["status"] == "complete" and h5.attrs["config_hash"] == config.fingerprint(cfg)
-        assert list(h5["table"].attrs["columns"])[:len(studies.level.SPEC_COLUMNS)] == list(studies.level.SPEC_COLUMNS)
+        assert list(h5["table"].attrs["columns"])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
 
 
 def test_level_group_keeps_every_solve(make_config):

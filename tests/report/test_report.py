@@ -139,7 +139,7 @@ def test_summary_table_one_line_per_study():
 def test_load_partial_study(partial_study, name):
     loaded = results.load(partial_study.output_dir / name)
     assert loaded.name == "t" and [r["N"] for r in loaded.rows] == [4, 8]
-    assert list(loaded.rows[0])[:len(studies.level.SPEC_COLUMNS)] == list(studies.level.SPEC_COLUMNS)
+    assert list(loaded.rows[0])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
     assert loaded.rows[0]["rate_L2"] is None and loaded.rows[1]["rate_L2"] > 1
     assert loaded.rows[1]["converged"] is True and isinstance(loaded.rows[1]["dofs"], int)
 

@@ -115,7 +115,7 @@ def test_sweep_writes_documented_tables(tmp_path, capsys):
         assert [row["alpha"] for row in csv.DictReader(f)] == ["1.0", "2.0", "3.0"]
     with open(folder / "reference.csv") as f:
         reference = list(csv.DictReader(f))
-    assert list(reference[0])[:len(studies.level.SPEC_COLUMNS)] == list(studies.level.SPEC_COLUMNS)
+    assert list(reference[0])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
     with h5py.File(folder / "study.h5") as h5:
         assert h5.attrs["study_type"] == "epsilon_sweep" and sorted(h5) == ["fitted", "reference", "table"]
         assert h5["table"].attrs["table"] == "sweep"  # the main table, named by its CSV file
@@ -134,7 +134,7 @@ def test_total_error_writes_spec_tables(make_config):
     for name in total.studies:
         with open(cfg.output_dir / name / "rates.csv") as f:
             rows = list(csv.DictReader(f))
-        assert list(rows[0])[:len(studies.level.SPEC_COLUMNS)] == list(studies.level.SPEC_COLUMNS) and len(rows) == 2
+        assert list(rows[0])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS) and len(rows) == 2
     h = [row["h"] for row in rows]
     with open(cfg.output_dir / "total.csv") as f:
         summary = {row["study"]: row for row in csv.DictReader(f)}

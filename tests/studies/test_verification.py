@@ -28,7 +28,7 @@ def test_manufactured_study_gamma_c_columns(make_config):
     with open(cfg.output_dir / "rates.csv") as f:
         rows = list(csv.DictReader(f))
     header = list(rows[0])
-    assert header[:len(studies.level.SPEC_COLUMNS)] == list(studies.level.SPEC_COLUMNS)
+    assert header[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
     measured = [c for c in header if not results.is_timing(c)]  # the t_* timing columns come last
     assert measured[-len(GAMMA_C):] == GAMMA_C  # after the SPEC and solver columns, in this order
     assert rows[0]["rate_L2_gc"] == "" and rows[0]["L2_gc"] != ""
