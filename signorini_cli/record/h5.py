@@ -219,7 +219,10 @@ def _write_summary(group, head, rows):
     group.attrs["description"] = VERIFICATION
     group.attrs["units"] = "observed_rate, proven_rate: 1 (powers of h)"
     for row in rows:
-        sub = group.require_group(row["kind"]).create_group(row["name"])
+        kind = group.require_group(row["kind"])
+        kind.attrs["description"] = f"one subgroup per {row['kind']} of the verdict, by its name"
+        kind.attrs["units"] = ""
+        sub = kind.create_group(row["name"])
         for key, value in row.items():
             if key not in ("kind", "name") and value is not None:
                 sub.attrs[key] = value

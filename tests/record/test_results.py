@@ -77,10 +77,9 @@ def test_h5_describes_itself(partial_study):
         assert h5["table/converged"].dtype == bool  # HDF5 enum FALSE = 0, TRUE = 1 on int8
         assert h5["level_00"].attrs["N"].dtype.kind == "i" and h5["level_00/solve_newton_its"].dtype.kind == "i"
         h5.visititems(lambda name, node: found.append((name, node)))
-        for name, node in [("/", h5)] + found:
-            if len(node.attrs) or isinstance(node, h5py.Dataset):
-                assert node.attrs["description"] and "units" in node.attrs, name
-                assert "\n" not in node.attrs["description"], name  # one line
+        for name, node in [("/", h5)] + found:  # every group and dataset
+            assert node.attrs["description"] and "units" in node.attrs, name
+            assert "\n" not in node.attrs["description"], name  # one line
     described = {name.rsplit("/", 1)[-1] for name, node in found
                  if isinstance(node, h5py.Dataset) and not name.startswith("level_")}
     assert not [c for c in described if record_h5.column_info(c) == ("", c.replace("_", " "))]
