@@ -141,3 +141,10 @@ reference: docs/reference/config.md
 docs/reference/config.md: scripts/config_reference.py $(PACKAGE) | $(STAMP)
 	$(PY) scripts/config_reference.py > $@.tmp
 	@mv $@.tmp $@; echo "wrote $@"
+
+.PHONY: results-format
+# docs/results-format.md from the writer's own descriptions and the study.h5 of a two-level demo run
+results-format: docs/results-format.md
+docs/results-format.md: scripts/results_format_page.py scripts/provenance.py signorini_cli/record/h5.py $(PACKAGE) | $(STAMP)
+	$(PY) scripts/results_format_page.py > $@.tmp
+	@mv $@.tmp $@; echo "wrote $@"

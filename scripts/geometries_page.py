@@ -1,7 +1,6 @@
 """docs/geometries.md from the configs/gmsh studies run serially and on 2 ranks (`make geometries`).
 
 usage: python scripts/geometries_page.py SERIAL_DIR MPI_DIR CONFIG... > docs/geometries.md"""
-import csv
 import math
 import sys
 from pathlib import Path
@@ -10,6 +9,7 @@ import numpy as np
 
 import provenance
 from signorini_cli import config
+from signorini_cli.record import csvfile
 
 # |Γ_C| of the exact domain, by geometry (or .msh file stem): the figure the discrete |Γ_C,h| approaches
 EXACT_GAMMA_C = {"unit_square": 1.0, "l_shape": 1.0, "unit_cube": 1.0, "half_disk": math.pi,
@@ -18,8 +18,7 @@ FIT_LEVELS = 3  # least-squares slope over the last three levels
 
 
 def rows(folder, cfg):
-    with open(Path(folder) / cfg.study / "rates.csv") as f:
-        return list(csv.DictReader(f))
+    return csvfile.read(Path(folder) / cfg.study / "rates.csv")
 
 
 def exact_gamma_c(cfg):

@@ -4,15 +4,14 @@
 reads each config's results (study_type signorini, epsilon_sweep, total_error) and writes the page
 and its figure next to it; every number on the page comes from those results."""
 import argparse
-import csv
 import sys
 from pathlib import Path
 
-import h5py
 
 import provenance
 from signorini_cli import config
 from signorini_cli.analysis import rates
+from signorini_cli.record import csvfile, h5
 from signorini_cli.report import plots
 
 PLOT = "limit-model-error.png"
@@ -53,7 +52,7 @@ derived in [signorini-solution.md](signorini-solution.md). Norms: `L2` = ‖·�
 
 
 def signorini_section(path, cfg):
-    rows = read_csv(cfg.output_dir / "rates.csv")
+    rows = csvfile.read(cfg.output_dir / "rates.csv")
     h = [r["h"] for r in rows]
     pressure_rates = rates.observed(h, [r["pressure_L2"] for r in rows], [r["converged"] for r in rows])
     for row, rate in zip(rows, pressure_rates):
@@ -78,9 +77,9 @@ def signorini_section(path, cfg):
 
 
 def sweep_section(path, cfg, folder):
-    sweep = read_csv(cfg.output_dir / "sweep.csv")
-    fitted = read_csv(cfg.output_dir / "fitted.csv")
-    reference = {r["N"]: r for r in read_csv(cfg.output_dir / "reference.csv")}
+    sweep = csvfile.read(cfg.output_dir / "sweep.csv")
+    fitted = csvfile.read(cfg.output_dir / "fitted.csv")
+    reference = {r["N"]: r for r in csvfile.read(cfg.output_dir / "reference.csv")}
     finest = max(r["N"] for r in sweep)
     plots.model_error([r for r in sweep if r["N"] == finest], folder / PLOT)
     for row in fitted:
@@ -157,7 +156,7 @@ def crossover(sweep, reference):
 
 
 def total_section(path, cfg):
-    rows = read_csv(cfg.output_dir / "total.csv")
+    rows = csvfile.read(cfg.output_dir / "total.csv")
     for row in rows:
         if row["solver"] == "compliance":
             row["expected_H1"] = min(1.0, row["p"] / row["alpha"])
@@ -188,8 +187,7 @@ def total_section(path, cfg):
 def versions_section(studies):
     lines = ["## Provenance", ""]
     for path, cfg in studies:
-        with h5py.File(cfg.output_dir / "study.h5") as h5:
-            attrs = dict(h5.attrs)
+        attrs = h5.read(cfg.output_dir / "study.h5").attrs
         versions = ", ".join(f"{k[len('version_'):]} {attrs[k]}" for k in sorted(attrs) if k.startswith("version_"))
         lines.append(f"- `{path}` → `{cfg.output_dir}`: MPI size {attrs['mpi_size']}; {versions}")
     return "\n".join(lines)
@@ -202,27 +200,6 @@ def monotone(rows):
         groups.setdefault((r["N"], r["alpha"]), []).append(r)
     measures = ("L2", "H1", "L2_gamma_c", "penetration")
     return all(b[m] < a[m] for group in groups.values() for a, b in zip(group, group[1:]) for m in measures)
-
-
-def read_csv(path):
-    """A CSV table with numbers parsed, empty cells None, true/false as booleans."""
-    with open(path) as f:
-        return [{k: _value(v) for k, v in row.items()} for row in csv.DictReader(f)]
-
-
-def _value(text):
-    if text == "":
-        return None
-    if text in ("true", "false"):
-        return text == "true"
-    try:
-        return int(text)
-    except ValueError:
-        pass
-    try:
-        return float(text)
-    except ValueError:
-        return text
 
 
 def markdown(rows, columns):

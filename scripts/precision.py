@@ -2,7 +2,6 @@
 column of every table compared (the default keeps each within 1e-6 of the tight one),
 and the cost of the default's polish (Newton steps after success) against `solver.polish=0`."""
 import argparse
-import csv
 import io
 import math
 import sys
@@ -15,6 +14,7 @@ import yaml
 import provenance
 from signorini_cli.analysis import rates
 from signorini_cli.app import cli
+from signorini_cli.record import csvfile
 from signorini_cli.solve import solver
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -67,16 +67,8 @@ def read_tables(out):
     """Every CSV table the run wrote, keyed by its path below `out`: rows of dicts of numbers or text."""
     tables = {}
     for path in sorted(Path(out).rglob("*.csv")):
-        with open(path) as f:
-            tables[str(path.relative_to(out))] = [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
+        tables[str(path.relative_to(out))] = csvfile.read(path)
     return tables
-
-
-def _number(text):
-    try:
-        return float(text)
-    except ValueError:
-        return {"true": True, "false": False}.get(text, text)
 
 
 def deviations(default, tight):

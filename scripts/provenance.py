@@ -2,9 +2,7 @@
 was made from, read from their study.h5 (results.py records both), and the revision that wrote the page."""
 from pathlib import Path
 
-import h5py
-
-from signorini_cli.record import results
+from signorini_cli.record import h5, results
 
 
 def runs(folders):
@@ -13,8 +11,8 @@ def runs(folders):
     for folder in folders:
         path = Path(folder) / "study.h5"
         if path.exists():
-            with h5py.File(path, "r") as h5:
-                found.add((str(h5.attrs.get("git_revision", "unknown")), str(h5.attrs.get("date", "unknown"))[:10]))
+            attrs = h5.read(path).attrs
+            found.add((str(attrs.get("git_revision", "unknown")), str(attrs.get("date", "unknown"))[:10]))
     return found
 
 

@@ -1,7 +1,6 @@
 """`make stiff`: run the stiff suite, the regular studies, a smoothing (delta) sweep and a conditioning
 sweep, and write docs/stability.md from the runs. Every number in that page comes from here."""
 import argparse
-import csv
 import dataclasses
 import io
 import json
@@ -21,6 +20,7 @@ import yaml
 import provenance
 from signorini_cli import config
 from signorini_cli.app import cli
+from signorini_cli.record import csvfile, h5
 
 ROOT = Path(__file__).resolve().parent.parent
 EASY_ITS = 3  # the issue's target: at most 3 Newton iterations after the first level with strategy auto
@@ -69,37 +69,20 @@ def run_tables(path, out, overrides=()):
         raise SystemExit(f"{path} {' '.join(overrides)}: exit status {status}")
     tables = {}
     for csv_path in sorted(cfg.output_dir.glob("*.csv")):
-        with open(csv_path) as f:
-            tables[csv_path.stem] = [_typed(row) for row in csv.DictReader(f)]
+        tables[csv_path.stem] = csvfile.read(csv_path)
     return status, tables
 
 
 def reused(cfg):
     """The exit status of a finished earlier run of exactly this config (same hash), or None. Only for
     reworking the page: the hash does not see changes to the code."""
-    import h5py
     path = cfg.output_dir / "study.h5"
     if not path.exists():
         return None
-    with h5py.File(path, "r") as h5:
-        if h5.attrs.get("config_hash") != config.fingerprint(cfg) or h5.attrs.get("status") != "complete":
-            return None
-        return 0 if all(h5["table/converged"][()]) else 1
-
-
-def _typed(row):
-    out = {}
-    for key, value in row.items():
-        if value in ("true", "false"):
-            out[key] = value == "true"
-        elif value == "":
-            out[key] = None
-        else:
-            try:
-                out[key] = int(value) if value.lstrip("-").isdigit() else float(value)
-            except ValueError:
-                out[key] = value
-    return out
+    record = h5.read(path)
+    if record.attrs.get("config_hash") != config.fingerprint(cfg) or record.attrs.get("status") != "complete":
+        return None
+    return 0 if all(row["converged"] for row in record.tables.get(record.main, [])) else 1
 
 
 def fmt(value, spec=".3e"):

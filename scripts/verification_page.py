@@ -5,13 +5,13 @@ mesh sizes. Every number on the page comes from results/<study>/{rates,summary}.
 
 The observed rates live on the page only: the configs keep what the paper predicts, not what a run gave."""
 import argparse
-import csv
 import sys
 from fractions import Fraction
 from pathlib import Path
 
 import provenance
 from signorini_cli import config
+from signorini_cli.record import csvfile
 
 OVERVIEW_NORMS = ("H1", "L2", "pos_gc_scaled", "energy_err")  # with _ref for data-only scenes
 
@@ -34,10 +34,7 @@ def load_case(path, results):
 
 
 def read_csv(path):
-    if not path.exists():
-        return []
-    with open(path) as f:
-        return list(csv.DictReader(f))
+    return csvfile.read(path) if path.exists() else []
 
 
 def page(cases):
@@ -88,7 +85,7 @@ def findings(cases):
             elif proven is not None and observed is not None and observed > proven + tolerance:
                 line = (f"- {where}: observed {rate(observed)}, the paper proves {fraction(proven)} "
                         f"({row['paper']}): **better than proven**.")
-                if row["log_factor"] == "true":  # the fit of e/|ln h| exceeds the plain slope by construction
+                if row["log_factor"] is True:  # the fit of e/|ln h| exceeds the plain slope by construction
                     plain = rate(number(row["plain_rate"]))
                     line = (f"- {where}: plain slope {plain}, {rate(observed)} for e/\\|ln h\\|; the paper proves "
                             f"O(h^{fraction(proven)} \\|ln h\\|) ({row['paper']}): the error decays as h^{plain} "
@@ -115,14 +112,14 @@ def case_section(case):
     lines += ["| level | N | h | dofs | ε | converged | Newton its |", "|---|---|---|---|---|---|---|"]
     for lv in case["levels"]:
         lines.append(f"| {lv['level']} | {lv['N']} | {float(lv['h']):.4e} | {lv['dofs']} | "
-                     f"{float(lv['epsilon']):.3e} | {lv['converged']} | {lv['newton_its']} |")
+                     f"{float(lv['epsilon']):.3e} | {str(lv['converged']).lower()} | {lv['newton_its']} |")
     lines += ["", "| norm | observed | proven | verdict | fitted levels (N) | paper | conditions |",
               "|---|---|---|---|---|---|---|"]
     for row in norm_rows(case):
         observed = rate(number(row["observed_rate"]))
-        if row["log_factor"] == "true":
+        if row["log_factor"] is True:
             observed += f" (of e/\\|ln h\\|; plain {rate(number(row['plain_rate']))})"
-        proven = fraction(number(row["proven_rate"])) + (" · \\|ln h\\|" if row["log_factor"] == "true" else "")
+        proven = fraction(number(row["proven_rate"])) + (" · \\|ln h\\|" if row["log_factor"] is True else "")
         lines.append(f"| {row['name']} | {observed} | {proven} | {row['verdict']} | {row['levels']} | "
                      f"{row['paper'] or '-'} | {row['conditions'].replace('|', '/')} |")
     lines += [""] + quantity_lines(case) + expect_lines(case)
@@ -146,7 +143,7 @@ def quantity_lines(case):
             why = "no order observable" if len(r["levels"].split()) == 3 else "needs three converged levels"
             lines.append(f"| {r['name']} | {r['levels']} | - | - | - | - | {why} |")
             continue
-        order = f"{float(r['order']):.2f}" + (" (oscillatory)" if r["oscillatory"] == "true" else "")
+        order = f"{float(r['order']):.2f}" + (" (oscillatory)" if r["oscillatory"] is True else "")
         lines.append(f"| {r['name']} | {r['levels']} | {float(r['value']):.6e} | {order} | "
                      f"{float(r['extrapolated']):.6e} | {100 * float(r['gci']):.3g}% | "
                      f"± {float(r['band']):.2e} |")

@@ -111,7 +111,7 @@ def norm_verdict(cfg, levels, norm):
 
 def expected(cfg, norm):
     """The proven rate a column is checked against; columns comparing different problems are not covered."""
-    if cfg.study_type == "signorini" or cfg.problem.exact_solves == "signorini":  # docs/limit.md
+    if cfg.problem.exact_solves == "signorini":  # docs/limit.md; a Signorini study's exact solution is one
         return rates.Expected(None, reason="errors against the Signorini solution u_S: the paper bounds "
                                            "u_eps - u_eps,h only (total-error heuristics: docs/limit.md)")
     if not cfg.verification.regular:  # the user says the paper's regularity hypothesis fails
@@ -219,20 +219,6 @@ def summary_rows(summary):
         rows.append(dict(kind="expect", name=e.norm, observed_rate=e.observed, expected_rate=e.rate,
                          tolerance=e.tolerance, met=e.met))
     return rows
-
-
-def write_h5(group, summary):
-    """The summary as HDF5 attributes: one subgroup per norm, quantity and expectation."""
-    group.attrs["fit_levels"] = summary.fit_levels
-    group.attrs["tolerance"] = summary.tolerance
-    group.attrs["expectations_met"] = summary.met
-    if summary.notes:
-        group.attrs["notes"] = "\n".join(summary.notes)
-    for row in summary_rows(summary):
-        sub = group.require_group(row["kind"]).create_group(row["name"])
-        for key, value in row.items():
-            if key not in ("kind", "name") and value is not None:
-                sub.attrs[key] = value
 
 
 def _levels(ns):

@@ -5,7 +5,6 @@ import hashlib
 import logging
 import re
 import os
-import sys
 from pathlib import Path
 
 import yaml
@@ -18,6 +17,7 @@ from ..meshing import geometries
 from ..record import results, resume
 from ..report import plots, progress, tables
 from ..solve import solver
+from ..system import errors
 from . import guard, resources
 
 logger = logging.getLogger(__name__)
@@ -89,9 +89,9 @@ def _description(path):
 
 
 def report_study(args):
-    """Tables and plots of a finished or partial study from its study.h5 or rates.csv."""
+    """Tables and plots of a finished or partial study of any type from its study.h5 (or rates.csv)."""
     try:
-        study = tables.load(args.path)
+        study = results.load(args.path)
         cfg = study_config(study)
         digits = args.digits if args.digits is not None else (cfg.output.digits if cfg is not None else 3)
         if digits < 1:
@@ -105,12 +105,12 @@ def report_study(args):
         if MPI.COMM_WORLD.rank == 0:  # other columns beside the study's own files, never over them
             written = tables.write(study, cfg, digits, plots=not args.no_plots, folder=folder, columns=columns,
                                    figure=figure, suffix=columns_suffix(args.columns) if beside else "")
-            table = tables.format_table(study.rows, cfg, columns)
+            table = tables.terminal(study, cfg) if columns is None else tables.format_table(study.rows, cfg, columns)
     except (ConfigError, OSError) as err:
         return fail(args.path, err)
     if MPI.COMM_WORLD.rank == 0:
         emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
-              f"wrote into {folder}: " + ", ".join(p.name for p in written)])
+              f"wrote into {folder}: " + ", ".join(str(p.relative_to(folder)) for p in written)])
     return EXIT_OK
 
 
@@ -133,6 +133,8 @@ def study_config(study):
 
 
 def _levels_done(study, cfg):
+    if studies.of(study.study_type).UNIT != "levels":
+        return f"{study.study_type}, {len(study.rows)} rows in its main table"
     done = len(study.rows)
     if cfg is None or done >= len(cfg.mesh.levels):
         return f"{done} level{'s' if done != 1 else ''}"
@@ -140,20 +142,22 @@ def _levels_done(study, cfg):
 
 
 def compare(args):
-    """Overlay several studies: error vs h and vs time per norm, Newton iterations; a summary table."""
+    """Overlay several studies of any type (what each type compares: its rate tables): error vs h and vs
+    time per norm, Newton iterations; a summary table."""
     try:
-        studies = [_load_one(path) for path in args.paths]
+        found = [_load_one(path) for path in args.paths]
     except _BadStudy as err:  # name the one folder that does not load
         return fail(err.path, err.cause)
     try:
-        if args.label and len(args.label) != len(studies):
-            raise ConfigError("--label", f"give one per study: {len(studies)} studies, {len(args.label)} labels")
-        labels = args.label or _labels(studies)
+        if args.label and len(args.label) != len(found):
+            raise ConfigError("--label", f"give one per study: {len(found)} studies, {len(args.label)} labels")
+        labels = args.label or _labels(found)
         twice = next((label for label in labels if labels.count(label) > 1), None)
         if twice is not None:  # one label would stand for two studies in the legend and the table
             raise ConfigError("--label", f"{twice!r} names two of the studies; give each its own label")
-        folder = Path(args.output) if args.output else studies[0].folder.parent / "compare"
-        rows = dict(zip(labels, (study.rows for study in studies)))
+        folder = Path(args.output) if args.output else found[0].folder.parent / "compare"
+        rows = {f"{label} {part}".strip(): part_rows for label, study in zip(labels, found)
+                for part, part_rows in compared(study).items()}
         written = []
         if MPI.COMM_WORLD.rank == 0:
             written = tables.write_comparison(rows, folder) + plots.write_comparison(rows, folder)
@@ -162,6 +166,11 @@ def compare(args):
     if MPI.COMM_WORLD.rank == 0:
         emit([tables.summary_table(rows), f"wrote into {folder}: " + ", ".join(p.name for p in written)])
     return EXIT_OK
+
+
+def compared(study):
+    """{label suffix: rate-table rows} of a study read back, as its type compares it."""
+    return studies.of(study.study_type).compared(study.tables or {"rates": study.rows})
 
 
 class _BadStudy(OSError):
@@ -174,15 +183,15 @@ class _BadStudy(OSError):
 
 def _load_one(path):
     try:
-        return tables.load(path)
+        return results.load(path)
     except (ConfigError, OSError) as err:
         raise _BadStudy(path, err) from None
 
 
-def _labels(studies):
+def _labels(found):
     """Study names, made unique with their folders where two studies share a name."""
-    names = [study.name for study in studies]
-    return [name if names.count(name) == 1 else f"{name} ({study.folder})" for name, study in zip(names, studies)]
+    names = [study.name for study in found]
+    return [name if names.count(name) == 1 else f"{name} ({study.folder})" for name, study in zip(names, found)]
 
 
 
@@ -209,8 +218,8 @@ def run(cfg, quiet=False, verbose=False, done=()):
     solver.forget_read_options()  # _warn_unused_options: this run's solves only
     comm = MPI.COMM_WORLD
     run_cfg = with_monitors(cfg) if verbose else cfg  # Watch below records cfg: no monitors in the hash
-    levels_study = cfg.study_type in results.LEVEL_STUDIES
-    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet and levels_study)
+    kind = studies.of(cfg.study_type)
+    shown = progress.Progress(cfg, show=comm.rank == 0 and not quiet and kind.UNIT == "levels")
     shown.level = len(done)  # a resumed study starts further on
     if done and comm.rank == 0 and not quiet:
         with guard.stdout_may_close():
@@ -226,7 +235,7 @@ def run(cfg, quiet=False, verbose=False, done=()):
     with guard.Watch(cfg, done, comm) as watch:
         result = studies.run_study(run_cfg, on_level=on_level, comm=comm,
                                  monitor=None if verbose or quiet else shown.monitor, done=done)
-        summary = verdict.summarize(cfg, result) if levels_study else None
+        summary = kind.summary(cfg, result)
         text = watch.finish(lambda: _outputs(cfg, result, summary))
     if comm.rank == 0 and not quiet:
         with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
@@ -238,15 +247,15 @@ def run(cfg, quiet=False, verbose=False, done=()):
 
 def _outputs(cfg, result, summary):
     """Write the study's tables and plots (rank 0) and return what the terminal shows."""
-    if summary is None:
-        named = results.limit_tables(cfg, result)
-        return tables.limit_summary(cfg, named, tables.write_limit(cfg, result, named))
-    rows = results.table(result)
-    written = tables.write(tables.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
-                           plots=cfg.output.plots)
-    header = f"study {cfg.study}: {cfg.output_dir} (contact term: contact_quadrature {cfg.contact_quadrature})"
-    return "\n".join([header, tables.format_table(rows, cfg),
-                      verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])
+    named = studies.of(cfg.study_type).tables(cfg, result)
+    study = results.Study(cfg.study, cfg.output_dir, results.main_rows(named), study_type=cfg.study_type,
+                          tables=named)
+    written = tables.write(study, cfg, cfg.output.digits, plots=cfg.output.plots)
+    header = (f"study {cfg.study} ({cfg.study_type}): {cfg.output_dir} "
+              f"(contact term: contact_quadrature {cfg.contact_quadrature})")
+    shown = [verdict.format_summary(summary)] if summary is not None else []
+    files = [str(path.relative_to(cfg.output_dir)) for path in written]
+    return "\n".join([header, tables.terminal(study, cfg)] + shown + ["wrote " + ", ".join(files)])
 
 
 def _warn_unused_options(unused, level):
@@ -292,8 +301,6 @@ def _prepare(cfg, args):
         resources.check_memory(cfg, MPI.COMM_WORLD)
     if cfg.mesh.kind == "gmsh":  # what gmsh cannot mesh is bad input, found before any level runs
         list(geometries.mesh_levels(cfg, MPI.COMM_WORLD))
-    if args.resume and cfg.study_type != "refinement":
-        raise ConfigError("--resume", f"study_type {cfg.study_type} runs from the start; use --force")
     return resume.finished_levels(cfg, MPI.COMM_WORLD) if args.resume else []
 
 
@@ -304,10 +311,9 @@ def _check_output(cfg, force):
 
 
 def fail(source, err):
+    """The one error line (rank 0) of bad input; exit status 2."""
     if MPI.COMM_WORLD.rank == 0:
-        message = _yaml_message(err) if isinstance(err, yaml.YAMLError) else str(err)
-        message = " ".join(message.split("\n"))  # one line, always
-        print(f"signorini: error: {source}: {message}", file=sys.stderr)
+        errors.print_error(source, _yaml_message(err) if isinstance(err, yaml.YAMLError) else err)
     return EXIT_BAD_INPUT
 
 

@@ -16,7 +16,8 @@ from mpi4py import MPI
 
 from ..config import ConfigError
 from ..record import results
-from ..system import files
+from .. import studies
+from ..system import errors, files
 
 logger = logging.getLogger(__name__)
 
@@ -113,7 +114,7 @@ def supervise(body):
             _abort_if_parallel(comm, sig.exit_status)
             return sig.exit_status
         except WriteFailed as err:  # raised on rank 0 alone, the writer: it speaks and ends the others
-            print(f"signorini: error: {err}{err.note}", file=sys.stderr)
+            errors.print_error("", f"{err}{err.note}")
             _abort_if_parallel(comm, BAD_SURROUNDINGS)
             return BAD_SURROUNDINGS
         except Exception as err:
@@ -150,7 +151,7 @@ def status(cfg, result, final=True):
     else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels), also with every
     level done while tables and figures are still being written (final=False)."""
     solves = list(result)
-    unit = "levels" if cfg.study_type in results.LEVEL_STUDIES else "solves"
+    unit = studies.of(cfg.study_type).UNIT
     last = solves[-1] if solves else None
     if unit == "levels" and last and not last.outcome.converged and cfg.solver.on_failure == "stop":
         return f"failed at level {last.index}: {last.outcome.reason}"
@@ -239,8 +240,7 @@ class Watch:
         """Write the results with `state` from this rank alone: the others may be gone or waiting. When
         they cannot be written (a full disk), status.txt alone, in place."""
         try:
-            rows = results.main_table(self.cfg, self.levels)
-            results.write_files(self.cfg, self.levels, rows, self.comm.size, state)
+            results.write_files(self.cfg, self.levels, self.comm.size, state)
         except OSError as err:
             logger.debug("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
             try:

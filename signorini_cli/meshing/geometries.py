@@ -15,7 +15,7 @@ from dolfinx import cpp, fem
 
 from .. import config
 from ..config import ConfigError, geometry_files
-from ..system import child, files
+from ..system import child, errors, files
 from . import refinement
 from .domain import CONTACT, domain_of, tag_facets
 
@@ -244,7 +244,7 @@ def main(argv=None):
         for path, msh, generated in cache_configs(sys.argv[1:] if argv is None else argv):
             print(f"{'meshed' if generated else 'cached'}  {msh}  ({path})")
     except (ConfigError, OSError) as err:
-        print(f"signorini meshes: error: {err}", file=sys.stderr)
+        errors.print_error("", err, program="signorini meshes")
         return 2
     return 0
 

@@ -1,59 +1,32 @@
-"""The study's record on disk, rewritten atomically after every solve: rates.csv, summary.csv,
-work_precision.csv and study.h5 for refinement and signorini studies; sweep.csv, fitted.csv and
-reference.csv (ε-sweeps) or total.csv and one folder per sub-study (total error) beside their study.h5."""
-import contextlib
-import csv
+"""The study's record on disk, rewritten atomically after every solve and read back: its tables as CSV
+(rates.csv, work_precision.csv, summary.csv; sweep.csv, fitted.csv, reference.csv; total.csv), study.h5
+and status.txt, a study of a type with parts (total error) also each part's record in its own folder.
+What the tables hold is the study type's (studies.registry); the formats are csvfile's and h5's."""
 import datetime
 import functools
-import io
 import json
+import logging
+import math
 import platform
 import subprocess
+from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 import yaml
 from mpi4py import MPI
 
-from .. import __version__, config
-from ..analysis import rates, verdict
+from .. import __version__, config, studies
+from ..analysis import verdict
 from ..config import canonical, fingerprint
+from ..studies.level import WORK_PRECISION_COLUMNS
 from ..system import files
+from . import csvfile, h5
 
-LEVEL_STUDIES = ("refinement", "signorini")  # a list of Levels, one rate table
-SPEC_COLUMNS = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
-                "L2", "rate_L2", "H1", "rate_H1", "time_s")
-EXTRA_COLUMNS = ("reason", "linear_its", "final_residual")
-NORMS = ("L2", "H1")
-WORK_PRECISION_COLUMNS = ("norm", "level", "N", "dofs", "error", "time_s", "cumulative_time_s")
+logger = logging.getLogger(__name__)
 # one line: running (k of n levels done) | complete | interrupted at level k | failed at level k: reason
 STATUS_FILE = "status.txt"
-
-
-def table(levels):
-    """Rows (dicts in column order) of the rate table; error columns only for norms measured."""
-    norms = [norm for norm in NORMS if any(norm in lv.errors for lv in levels)]
-    h = [lv.h for lv in levels]
-    ok = [lv.outcome.converged for lv in levels]
-    observed = {norm: rates.observed(h, [lv.errors.get(norm) for lv in levels], ok) for norm in norms}
-    rows = []
-    for k, lv in enumerate(levels):
-        row = {"level": lv.index, "N": lv.n, "h": lv.h, "dofs": lv.dofs, "epsilon": lv.eps,
-               "converged": lv.outcome.converged, "newton_its": lv.outcome.newton_its}
-        for norm in norms:
-            row[norm] = lv.errors.get(norm) if lv.outcome.converged else None
-            row[f"rate_{norm}"] = observed[norm][k]
-        row["time_s"] = lv.time_s
-        row.update(reason=lv.outcome.reason, linear_its=lv.outcome.linear_its,
-                   final_residual=lv.outcome.residuals[-1] if lv.outcome.residuals else None)
-        row.update(lv.extra)
-        row.update(lv.timings)
-        rows.append(row)
-    cumulative = 0.0
-    for row in rows:  # failed levels cost time too
-        cumulative += row["time_s"] or 0.0
-        row["cumulative_time_s"] = cumulative
-    return rows
+# the header a table without rows still has (the CSV of a study before its first error)
+EMPTY_HEADERS = {"work_precision": WORK_PRECISION_COLUMNS}
 
 
 def is_timing(column):
@@ -63,44 +36,55 @@ def is_timing(column):
             or column.startswith("t_"))
 
 
-def work_precision_rows(rows):
-    """Error against cost, one row per (norm, level) with an error: the level's own wall time and the
-    cumulative wall time of the study up to it (what an error costs from scratch)."""
-    return [{"norm": norm, "level": row["level"], "N": row["N"], "dofs": row["dofs"], "error": row[norm],
-             "time_s": row["time_s"], "cumulative_time_s": row["cumulative_time_s"]}
-            for norm in rates.error_columns(rows) for row in rows if row.get(norm) is not None]
-
-
 def write(cfg, result, comm=MPI.COMM_WORLD, status=None):
-    """Write the study's files (and status.txt, given a status) for the result so far: the Levels of a
-    refinement or signorini study, a Sweep or a Total (rank 0 writes, every rank waits); the rows of
-    its main table (rates, or the ε-sweep's / total-error table)."""
-    summary = verdict.summarize(cfg, result) if cfg.study_type in LEVEL_STUDIES else None
-    rows = main_table(cfg, result)
+    """Write the study's files (and status.txt, given a status) for the result so far (rank 0 writes,
+    every rank waits); the rows of its main table."""
+    kind = studies.of(cfg.study_type)
+    summary = kind.summary(cfg, result)  # on every rank: built from reduced values
+    named = kind.tables(cfg, result)
     if comm.rank == 0:
-        write_files(cfg, result, rows, comm.size, status, summary)
+        write_files(cfg, result, comm.size, status, summary, named)
     comm.barrier()
-    return rows
+    return main_rows(named)
 
 
-def write_files(cfg, result, rows, mpi_size, status=None, summary=None):
+def main_rows(named):
+    """The rows of the first (main) of a study type's tables, [] before any."""
+    return next(iter(named.values()), [])
+
+
+def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
     """The writing of `write` by this rank alone, no collective: the fault path calls it on the rank
     that failed. Every file is written aside first, then all are renamed (status.txt last): a failure
     such as a full disk replaces none of them, so the tables and study.h5 always hold the same solves."""
-    if cfg.study_type not in LEVEL_STUDIES:
-        return _write_limit_files(cfg, result, mpi_size, status)
-    levels = result
-    summary = verdict.summarize(cfg, levels) if summary is None else summary
+    kind = studies.of(cfg.study_type)
+    for sub, part in kind.parts(cfg, result):
+        write_files(sub, part, mpi_size)
+    named = kind.tables(cfg, result) if named is None else named
+    summary = kind.summary(cfg, result) if summary is None else summary
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
-    texts = {"rates.csv": csv_text(rows),
-             "summary.csv": csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS),
-             "work_precision.csv": csv_text(work_precision_rows(rows), WORK_PRECISION_COLUMNS)}
-    writes = [(folder / name, functools.partial(Path.write_text, data=text)) for name, text in texts.items()]
-    writes.append((folder / "study.h5", lambda path: _write_h5(path, cfg, levels, rows, mpi_size, summary, status)))
+    texts = {name: csvfile.text(rows) for name, rows in named.items() if "/" not in name}
+    summary_rows = summary_record(summary) if summary is not None else ()
+    if summary is not None:
+        texts["summary"] = csvfile.text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
+    texts = {name: (text or csvfile.text([], EMPTY_HEADERS.get(name))) for name, text in texts.items()}
+    writes = [(folder / f"{name}.csv", functools.partial(Path.write_text, data=text)) for name, text in texts.items()]
+    levels = kind.levels_of(result)
+    attrs = record_attrs(cfg, levels, mpi_size, status)
+    writes.append((folder / h5.NAME, lambda path: h5.write(path, attrs, named, zip(levels, main_rows(named)),
+                                                            summary_rows)))
     if status is not None:
         writes.append((folder / STATUS_FILE, functools.partial(Path.write_text, data=status + "\n")))
     files.replace_all(writes)
+
+
+def summary_record(summary):
+    """(attributes, rows) of the verdict as study.h5 holds it."""
+    head = {"fit_levels": summary.fit_levels, "tolerance": summary.tolerance, "expectations_met": summary.met}
+    if summary.notes:
+        head["notes"] = "\n".join(summary.notes)
+    return head, verdict.summary_rows(summary)
 
 
 def write_status(folder, status):
@@ -108,139 +92,23 @@ def write_status(folder, status):
     files.overwrite(Path(folder) / STATUS_FILE, status + "\n")
 
 
-def main_table(cfg, result):
-    """The rows of the study's main table: the rate table, or the first of limit_tables."""
-    if cfg.study_type in LEVEL_STUDIES:
-        return table(result)
-    return next(iter(limit_tables(cfg, result).values()), [])
-
-
-def _write_limit_files(cfg, result, mpi_size, status):
-    """An ε-sweep's or total-error study's CSV tables and study.h5 (a total-error study also writes each
-    sub-study's rate table in its own folder); status.txt last."""
-    if cfg.study_type == "total_error" and not isinstance(result, list):
-        for sub, levels in result.studies.values():
-            if levels:
-                write_files(sub, levels, table(levels), mpi_size)
-    named = limit_tables(cfg, result)
-    folder = cfg.output_dir
-    folder.mkdir(parents=True, exist_ok=True)
-    writes = [(folder / f"{name}.csv", functools.partial(Path.write_text, data=csv_text(rows)))
-              for name, rows in named.items()]
-    writes.append((folder / "study.h5", lambda path: _write_limit_h5(path, cfg, named, mpi_size, status)))
+def record_attrs(cfg, levels, mpi_size, status):
+    """What every study.h5 records: the config as given and resolved (--set overrides and defaults
+    included), its hash for --resume, the study, MPI size, status, versions and git revision."""
+    attrs = {"study": cfg.study, "study_type": cfg.study_type, "config": cfg.text,
+             "config_resolved": yaml.safe_dump(config.to_dict(cfg), sort_keys=False),
+             "config_hash": fingerprint(cfg),  # --resume continues only under the same hash
+             "config_canonical": json.dumps(canonical(cfg), sort_keys=True, default=str),
+             "contact_quadrature": str(cfg.contact_quadrature),  # the discrete problem's contact rule
+             "levels_done": len(levels), "mpi_size": mpi_size,
+             "time_total_s": float(sum(lv.time_s for lv in levels)),
+             "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
     if status is not None:
-        writes.append((folder / STATUS_FILE, functools.partial(Path.write_text, data=status + "\n")))
-    files.replace_all(writes)
-
-
-def _write_limit_h5(path, cfg, named, mpi_size, status):
-    with _h5_in_memory(path) as h5:
-        _write_attrs(h5, cfg, mpi_size, status)
-        h5.attrs["study_type"] = cfg.study_type
-        for name, rows in named.items():
-            _write_table(h5.create_group(name), rows)
-
-
-# --- the ε → 0 studies' tables (docs/limit.md) -------------------------------------------------------
-MODEL_ERRORS = ("L2", "H1", "L2_gamma_c", "penetration")  # of u_{ε,h} − u_{S,h} (measure.model_differences)
-SWEEP_COLUMNS = ("N", "h", "dofs", "alpha", "epsilon", "converged", "newton_its",
-                 "L2", "rate_L2", "H1", "rate_H1", "L2_gamma_c", "rate_L2_gamma_c",
-                 "penetration", "rate_penetration", "time_s", "reason")
-
-
-def limit_tables(cfg, result):
-    """The CSV tables of an ε-sweep (sweep, fitted, reference) or a total-error study (total): name -> rows
-    (none before the first solve, when the result is still the empty list the study starts from)."""
-    if isinstance(result, list):
-        return {}
-    if cfg.study_type == "epsilon_sweep":
-        return {"sweep": sweep_table(result), "fitted": fitted_table(result, cfg.limit.fit_last),
-                "reference": table(result.references)}
-    return {"total": total_table(result, cfg.limit.fit_last)}
-
-
-def sweep_table(sweep):
-    """One row per (mesh, α, ε): the differences and their rates in ε against the previous ε."""
-    rows = []
-    for group in _sweep_groups(sweep.points):
-        eps = [p.eps for p in group]
-        ok = [p.outcome.converged for p in group]
-        observed = {m: rates.observed(eps, [p.differences[m] for p in group], ok) for m in MODEL_ERRORS}
-        for k, p in enumerate(group):
-            row = {"N": p.n, "h": p.h, "dofs": p.dofs, "alpha": p.alpha, "epsilon": p.eps,
-                   "converged": p.outcome.converged, "newton_its": p.outcome.newton_its}
-            for m in MODEL_ERRORS:
-                row[m] = p.differences[m] if ok[k] else None
-                row[f"rate_{m}"] = observed[m][k]
-            row.update(time_s=p.time_s, reason=p.outcome.reason)
-            rows.append(row)
-    return rows
-
-
-def fitted_table(sweep, last):
-    """One row per (mesh, α): the least-squares slope of log(difference) against log ε over the
-    `last` smallest converged ε, for every measure."""
-    rows = []
-    for group in _sweep_groups(sweep.points):
-        eps, ok = [p.eps for p in group], [p.outcome.converged for p in group]
-        used = [p for p in group if p.outcome.converged][-last:]
-        row = {"N": group[0].n, "h": group[0].h, "alpha": group[0].alpha, "points": len(used),
-               "eps_max": used[0].eps if used else None, "eps_min": used[-1].eps if used else None}
-        for m in MODEL_ERRORS:
-            row[f"fit_{m}"] = rates.fitted(eps, [p.differences[m] for p in group], ok, last)
-        rows.append(row)
-    return rows
-
-
-def total_table(total, last):
-    """One row per sub-study: its finest level's errors against u_S, the last and the fitted rates."""
-    rows = []
-    for name, (sub, levels) in total.studies.items():
-        finest = table(levels)[-1] if levels else {}
-        vi_study = sub.study_type == "signorini"
-        row = {"study": name, "solver": "signorini" if vi_study else "compliance",
-               "alpha": None if vi_study else sub.alpha, "p": None if vi_study else sub.epsilon.exponent,
-               "levels": len(levels), "N": finest.get("N"), "h": finest.get("h"), "epsilon": finest.get("epsilon"),
-               "converged": all(lv.outcome.converged for lv in levels)}
-        for norm in NORMS:
-            row[norm] = finest.get(norm)
-            row[f"rate_{norm}"] = finest.get(f"rate_{norm}")
-            row[f"fit_{norm}"] = rates.fitted([lv.h for lv in levels], [lv.errors.get(norm) for lv in levels],
-                                              [lv.outcome.converged for lv in levels], last)
-        rows.append(row)
-    return rows
-
-
-def _sweep_groups(points):
-    """The points split into runs of one (mesh, α), in solve order."""
-    groups = {}
-    for p in points:
-        groups.setdefault((p.n, p.alpha), []).append(p)
-    return list(groups.values())
-
-
-def csv_text(rows, columns=None):
-    """The table as CSV: floats in full precision, empty cells for missing values; `columns`
-    defaults to every row's keys, in order of appearance (rows lacking a column leave it empty)."""
-    if not rows and columns is None:
-        return ""
-    out = io.StringIO()
-    columns = columns or list(dict.fromkeys(key for row in rows for key in row))
-    writer = csv.DictWriter(out, fieldnames=list(columns), lineterminator="\n", restval="")
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({k: _cell(v) for k, v in row.items()})
-    return out.getvalue()
-
-
-def _cell(value):
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return repr(value)
-    return value
+        attrs["status"] = status
+    attrs.update({f"version_{name}": version for name, version in versions().items()})
+    if git_revision():
+        attrs["git_revision"] = git_revision()
+    return attrs
 
 
 def versions():
@@ -251,48 +119,6 @@ def versions():
             "ffcx": ffcx.__version__, "ufl": ufl.__version__, "h5py": h5py.__version__,
             "numpy": numpy.__version__, "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
             "python": platform.python_version()}
-
-
-def _write_h5(path, cfg, levels, rows, mpi_size, summary=None, status=None):
-    with _h5_in_memory(path) as h5:
-        _write_attrs(h5, cfg, mpi_size, status)
-        h5.attrs["levels_done"] = len(levels)
-        h5.attrs["config_hash"] = fingerprint(cfg)  # --resume continues only under the same hash
-        h5.attrs["config_canonical"] = json.dumps(canonical(cfg), sort_keys=True, default=str)
-        h5.attrs["time_total_s"] = float(sum(lv.time_s for lv in levels))
-        _write_table(h5.create_group("table"), rows)
-        for lv, row in zip(levels, rows):
-            _write_level(h5.create_group(f"level_{lv.index:02d}"), lv, row)
-        if summary is not None:
-            verdict.write_h5(h5.create_group("verification"), summary)
-
-
-@contextlib.contextmanager
-def _h5_in_memory(path):
-    """An HDF5 file built in memory, then written to `path` as bytes: a full disk is then a plain OSError,
-    never an HDF5 file left half-closed (h5py raises RuntimeError and HDF5 crashes with SEGV at exit)."""
-    import h5py
-    buffer = io.BytesIO()
-    with h5py.File(buffer, "w") as h5:
-        yield h5
-    Path(path).write_bytes(buffer.getvalue())
-
-
-def _write_attrs(h5, cfg, mpi_size, status):
-    """What every study.h5 records: the config as given and resolved (--set overrides and defaults
-    included), the study, MPI size, status, versions and git revision."""
-    h5.attrs["config"] = cfg.text
-    h5.attrs["config_resolved"] = yaml.safe_dump(config.to_dict(cfg), sort_keys=False)
-    h5.attrs["study"] = cfg.study
-    h5.attrs["contact_quadrature"] = str(cfg.contact_quadrature)  # the discrete problem's contact rule
-    h5.attrs["mpi_size"] = mpi_size
-    h5.attrs["date"] = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-    if status is not None:
-        h5.attrs["status"] = status
-    for name, version in versions().items():
-        h5.attrs[f"version_{name}"] = version
-    if git_revision():
-        h5.attrs["git_revision"] = git_revision()
 
 
 @functools.lru_cache(maxsize=1)
@@ -313,30 +139,121 @@ def git_revision():
     return head.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
 
 
-def _write_table(group, rows):
-    group.attrs["columns"] = list(rows[0]) if rows else []  # HDF5 lists datasets by name, not in order
-    for column in (rows[0] if rows else {}):
-        values = [row.get(column) for row in rows]  # a column some rows lack (limit studies) is NaN there
-        if all(isinstance(v, str) for v in values):
-            group.create_dataset(column, data=[v.encode() for v in values])
-        else:
-            group.create_dataset(column, data=[float("nan") if v is None else float(v) for v in values])
+
+# --- reading a study back ---------------------------------------------------------------------------
+
+class DamagedResults(OSError):
+    """A study file that cannot be read as a table (cut short, NaN where a count belongs, a group
+    missing): bad input for report, compare and --resume, which name the file."""
 
 
-def _write_level(group, lv, row):
-    for column, value in row.items():
-        if value is not None:
-            group.attrs[column] = value
-    group.create_dataset("residuals", data=np.array(lv.outcome.residuals, dtype=float))
-    _write_solves(group, lv.outcome.steps)
-    for norm, value in lv.errors.items():  # raw errors, also of a level that did not converge
-        group.attrs[f"measured_{norm}"] = value
+@dataclass(frozen=True)
+class Study:
+    """A study read back from its folder: its main table's rows, its name and type, the resolved config
+    text, every table of its record (name -> rows) and its root attributes."""
+    name: str
+    folder: Path
+    rows: list
+    config_text: str = ""  # empty when read from rates.csv alone
+    attrs: dict = field(default_factory=dict, repr=False)
+    study_type: str = "refinement"
+    tables: dict = field(default_factory=dict, repr=False)
 
 
-def _write_solves(group, steps):
-    """One entry per SNES solve of the level (attempts, continuation steps, linear fallback), in order:
-    its eps, Newton iterations and reason; `residuals` holds their histories one after the other."""
-    if steps:
-        group.create_dataset("solve_eps", data=np.array([s[0] for s in steps], dtype=float))
-        group.create_dataset("solve_newton_its", data=np.array([s[1] for s in steps], dtype=int))
-        group.create_dataset("solve_reason", data=[s[2].encode() for s in steps])
+def load(path):
+    """Read a study from its folder, its study.h5 or its rates.csv (no recomputation). A damaged
+    study.h5 gives way to an intact rates.csv beside it (a warning says so)."""
+    path = Path(path)
+    if path.is_dir():
+        found = path / h5.NAME, path / "rates.csv"
+        if not any(p.exists() for p in found):
+            raise FileNotFoundError("neither study.h5 nor rates.csv in this folder (not a study folder)")
+        path = next(p for p in found if p.exists())
+    if not path.exists():
+        raise FileNotFoundError("No such file or folder")
+    if path.suffix == ".csv":
+        return load_csv(path)
+    try:
+        return load_h5(path)
+    except DamagedResults as err:
+        fallback = path.parent / "rates.csv"
+        if not fallback.exists():
+            raise
+        try:
+            study = load_csv(fallback)
+        except DamagedResults as also:
+            raise DamagedResults(f"{err}; {also}") from None
+        logger.warning("%s; reading %s instead", err, fallback)
+        return study
+
+
+def load_h5(path):
+    """The Study in a study.h5: its tables by name (the main one as `rows`)."""
+    record = read_record(path)
+    attrs = record.attrs
+    kind = attrs.get("study_type", "refinement")
+    if kind not in studies.STUDY_TYPES:
+        raise DamagedResults(f"{path}: damaged, study_type {kind!r} is not one this version knows")
+    if record.main is None:
+        raise DamagedResults(f"{path}: damaged, no table group")
+    tables = record.tables
+    if record.main == h5.MAIN:  # written before the main table carried its name: the type's first table
+        first = next(iter(studies.of(kind).tables(None, [])), h5.MAIN)
+        tables = dict({first: tables.pop(h5.MAIN)}, **tables)
+    first = next(iter(tables))
+    main = tables[first] = _with_level_attrs(tables[first], record.levels)
+    _check_rows(main, path, studies.of(kind).UNIT)
+    try:
+        studies.of(kind).reported(None, tables)  # every table its type reports is there
+    except KeyError as err:
+        raise DamagedResults(f"{path}: damaged, no table {err} (study_type {kind})") from None
+    text = attrs.get("config_resolved") or attrs.get("config", "")
+    return Study(attrs.get("study", path.parent.name), path.parent, main, text, attrs, kind, tables)
+
+
+def _with_level_attrs(rows, levels):
+    """The rows with the values of their level_NN groups' attributes (native types also in files that
+    stored every table column as float)."""
+    if len(levels) != len(rows):
+        return rows
+    return [{c: attrs.get(c, value) for c, value in row.items()}
+            for row, (attrs, _) in zip(rows, (levels[k] for k in sorted(levels)))]
+
+
+def read_record(path):
+    try:
+        return h5.read(path)
+    except h5.Damaged as err:
+        raise DamagedResults(str(err)) from None
+
+
+def load_csv(path):
+    """The Study of a rates.csv alone (no config, no other table)."""
+    try:
+        rows = csvfile.read(path)
+    except csvfile.Damaged as err:
+        raise DamagedResults(str(err)) from None
+    _check_rows(rows, path, "levels")
+    return Study(path.parent.name, path.parent, rows)
+
+
+# what every row of a study's rate table holds, whatever else it has
+ROW_TYPES = {"level": int, "N": int, "dofs": int, "h": float, "converged": bool}
+
+
+def _check_rows(rows, path, unit):
+    """Raise DamagedResults naming `path` unless every row of a rate table (unit: levels) has its level's
+    counts and a finite h > 0."""
+    for row in rows if unit == "levels" else ():
+        for column, kind in ROW_TYPES.items():
+            if not _valid(row.get(column), kind):
+                raise DamagedResults(f"{path}: damaged, {column} = {row.get(column)!r} "
+                                     f"at level {row.get('level')!r}")
+
+
+def _valid(value, kind):
+    if kind is bool or isinstance(value, bool):
+        return isinstance(value, bool) and kind is bool
+    if not isinstance(value, (int, float)) or not math.isfinite(value):
+        return False
+    return float(value).is_integer() and value >= 0 if kind is int else value > 0

@@ -1,15 +1,17 @@
-"""Resuming a study: its finished levels read back from study.h5, when the config is unchanged."""
+"""Resuming a study: its finished levels read back from study.h5 by their index, when the config is
+unchanged and every level up to the last is there whole."""
 import json
+import math
 
-from .. import config
+from .. import config, studies
 from ..config import ConfigError
 from ..solve import solver
-from ..studies.level import Level
-from . import results
+from ..studies.level import EXTRA_COLUMNS, NORMS, LEADING_COLUMNS, Level
+from . import h5, results
 
-# row columns that Level's own fields and Outcome produce (results.table); any other is Level.extra
-OWN_COLUMNS = (set(results.SPEC_COLUMNS) | set(results.EXTRA_COLUMNS) | {"cumulative_time_s"}
-               | {f"rate_{norm}" for norm in results.NORMS})
+# row columns that Level's own fields and Outcome produce (level.rate_table); any other is Level.extra
+OWN_COLUMNS = (set(LEADING_COLUMNS) | set(EXTRA_COLUMNS) | {"cumulative_time_s"} | {f"rate_{norm}" for norm in NORMS})
+FORCE = "use --force to start over"
 
 
 def finished_levels(cfg, comm):
@@ -28,35 +30,46 @@ def finished_levels(cfg, comm):
 
 
 def read_levels(cfg):
-    """The Level records in cfg.output_dir/study.h5, after checking it was written for this config."""
-    import h5py
+    """The Level records in cfg.output_dir/study.h5, in index order, after checking it was written for
+    this config and holds levels 0 .. k-1 each whole (a gap or a damaged level is refused, never solved again)."""
+    if not studies.of(cfg.study_type).RESUMABLE:
+        raise ConfigError("--resume", f"study_type {cfg.study_type} runs from the start; {FORCE}")
     folder = cfg.output_dir
-    path = folder / "study.h5"
+    path = folder / h5.NAME
     if not path.exists():
         if (folder / "rates.csv").exists():
-            raise ConfigError("--resume", f"{folder} has rates.csv but no study.h5 to resume from; "
-                                          "use --force to start over")
+            raise ConfigError("--resume", f"{folder} has rates.csv but no study.h5 to resume from; {FORCE}")
         return []
     try:
-        with h5py.File(path, "r") as h5:
-            check_same_config(cfg, h5.attrs, path)
-            columns = [str(c) for c in h5["table"].attrs.get("columns", [])]
-            return [_level(h5[name], columns) for name in sorted(h5) if name.startswith("level_")]
-    except (OSError, KeyError) as err:
-        raise ConfigError("--resume", f"cannot read {path}: {err}; use --force to start over") from None
+        record = h5.read(path)
+    except h5.Damaged as err:
+        raise ConfigError("--resume", f"{err}; {FORCE}") from None
+    check_same_config(cfg, record.attrs, path)
+    if record.main is None:
+        raise ConfigError("--resume", f"{path} is damaged: no table group; {FORCE}")
+    rows = record.tables[record.main]
+    indices = sorted(record.levels)
+    if indices != list(range(len(indices))) or len(rows) != len(indices):
+        missing = sorted(set(range(max(indices + [len(rows) - 1]) + 1)) - set(indices))
+        raise ConfigError("--resume", f"{path} is damaged: no group level_{missing[0]:02d} (it has "
+                                      f"{len(indices)} level group(s), the table {len(rows)} row(s)); {FORCE}")
+    columns = list(rows[0]) if rows else []
+    return [_level(path, index, *record.levels[index], columns) for index in indices]
 
 
 def check_same_config(cfg, attrs, path):
     """ConfigError unless study.h5's config hash is cfg's; the message names the keys that changed."""
     stored = attrs.get("config_hash")
     if stored is None:
-        raise ConfigError("--resume", f"{path} has no config hash (written before --resume existed); "
-                                      "use --force to start over")
+        raise ConfigError("--resume", f"{path} has no config hash (written before --resume existed); {FORCE}")
     if stored != config.fingerprint(cfg):
-        before = json.loads(attrs.get("config_canonical", "{}"))
+        try:
+            before = json.loads(attrs.get("config_canonical", "{}"))
+        except (TypeError, ValueError):
+            before = {}
         now = json.loads(json.dumps(config.canonical(cfg), sort_keys=True, default=str))
         raise ConfigError("--resume", f"the config changed since {path} was written "
-                                      f"({differences(before, now)}); use --force to start over")
+                                      f"({differences(before, now)}); {FORCE}")
 
 
 def differences(before, now):
@@ -70,7 +83,7 @@ def differences(before, now):
 
 def _flat(tree, prefix=""):
     flat = {}
-    for key, value in tree.items():
+    for key, value in (tree.items() if isinstance(tree, dict) else ()):
         if isinstance(value, dict):
             flat.update(_flat(value, f"{prefix}{key}."))
         else:
@@ -78,20 +91,44 @@ def _flat(tree, prefix=""):
     return flat
 
 
-def _level(group, columns):
-    """One Level back from its group level_NN: the row as attributes, the residual history."""
-    a = group.attrs
-    outcome = solver.Outcome(converged=bool(a["converged"]), reason=str(a["reason"]),
-                             newton_its=int(a["newton_its"]), linear_its=int(a["linear_its"]),
-                             residuals=tuple(float(r) for r in group["residuals"][()]))
-    errors = {name[len("measured_"):]: float(a[name]) for name in a if name.startswith("measured_")}
-    row = {c: _plain(a[c]) if c in a else None for c in columns if c not in OWN_COLUMNS}
+# a level group's attributes Level needs, and the Python types they must have
+LEVEL_TYPES = {"level": int, "N": int, "h": float, "dofs": int, "epsilon": float, "converged": bool,
+               "reason": str, "newton_its": int, "linear_its": int, "time_s": float}
+
+
+def _level(path, index, attrs, datasets, columns):
+    """One Level back from its group level_NN: the row as attributes, the residual history; ConfigError
+    naming the attribute that is missing or of the wrong type."""
+    where = f"{path}: level_{index:02d}"
+    a = {name: _typed(where, name, attrs.get(name), kind) for name, kind in LEVEL_TYPES.items()}
+    if a["level"] != index:
+        raise ConfigError("--resume", f"{where} says it is level {a['level']}; {FORCE}")
+    try:
+        residuals = tuple(float(r) for r in datasets["residuals"])
+        errors = {name[len("measured_"):]: float(attrs[name]) for name in attrs if name.startswith("measured_")}
+    except (KeyError, TypeError, ValueError) as err:
+        raise ConfigError("--resume", f"{where} is damaged ({err}); {FORCE}") from None
+    outcome = solver.Outcome(converged=a["converged"], reason=a["reason"], newton_its=a["newton_its"],
+                             linear_its=a["linear_its"], residuals=residuals)
+    row = {c: attrs.get(c) for c in columns if c not in OWN_COLUMNS}
     extra = {c: v for c, v in row.items() if not results.is_timing(c) or c == "reference_time_s"}
     timings = {c: v for c, v in row.items() if c not in extra}
-    return Level(int(a["level"]), int(a["N"]), float(a["h"]), int(a["dofs"]), float(a["epsilon"]),
-                 outcome, errors, float(a["time_s"]), extra, timings=timings)
+    return Level(index, a["N"], a["h"], a["dofs"], a["epsilon"], outcome, errors, a["time_s"], extra,
+                 timings=timings)
 
 
-def _plain(value):
-    """numpy scalars from h5py as Python values (the CSV writes true/false and ints as before)."""
-    return value.item() if hasattr(value, "item") else value
+def _typed(where, name, value, kind):
+    """value as `kind`, or ConfigError: a count must be a whole number, a flag true/false, h finite."""
+    if value is None:
+        raise ConfigError("--resume", f"{where} has no attribute {name}; {FORCE}")
+    if kind is bool and isinstance(value, (bool, int)) and value in (0, 1):
+        return bool(value)
+    if kind is int and isinstance(value, (int, float)) and not isinstance(value, bool) \
+            and math.isfinite(value) and float(value).is_integer():
+        return int(value)
+    if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value):
+        return float(value)
+    if kind is str and isinstance(value, str):
+        return value
+    wanted = {bool: "true or false", int: "a whole number", float: "a finite number", str: "text"}[kind]
+    raise ConfigError("--resume", f"{where} attribute {name} is {value!r}, not {wanted}; {FORCE}")

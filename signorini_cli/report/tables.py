@@ -1,16 +1,14 @@
-"""Human-readable output: the terminal table, Markdown/LaTeX rate tables, and a study read back from disk."""
-import csv
-import logging
+"""Human-readable output: the terminal table, Markdown/LaTeX tables and the figures of a study of any type
+(what its type says it reports)."""
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from .. import config
+from .. import config, studies
 from ..analysis import verdict
 from ..analysis.rates import fitted
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
-from ..record import results
+from ..record import csvfile
 from . import latex
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
@@ -19,21 +17,8 @@ PAPER_LEADING = ("N", "h", "epsilon", "newton_its")  # what a paper shows before
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
 FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})
-SPEC_ORDER = ("level", "N", "h", "dofs", "epsilon", "converged", "newton_its",
-              "L2", "rate_L2", "H1", "rate_H1", "time_s")
 FIT_LEVELS = 3  # fitted slopes without a config: verification.fit_levels' default
-logger = logging.getLogger(__name__)
 RATE_DEFINITION = r"rate: $\log(e_k/e_{k-1})/\log(h_k/h_{k-1})$ between successive levels"
-
-
-@dataclass(frozen=True)
-class Study:
-    """A study read back from its folder: the table rows, its name and the resolved config text."""
-    name: str
-    folder: Path
-    rows: list
-    config_text: str = ""  # empty when read from rates.csv alone
-    attrs: dict = field(default_factory=dict, repr=False)
 
 
 def fitted_slope(h, e, k=FIT_LEVELS):
@@ -194,10 +179,7 @@ def write_comparison(studies, folder, fit_levels=FIT_LEVELS):
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     paths = [folder / f"compare.{ext}" for ext in ("csv", "md", "tex")]
-    with open(paths[0], "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(table[0]), lineterminator="\n")
-        writer.writeheader()
-        writer.writerows([{k: "" if v is None else v for k, v in row.items()} for row in table])
+    paths[0].write_text(csvfile.text(table))
     header = ["study", "levels", "finest h", "time [s]"] + [f"{names.name(n).text} {k}" for n in all_norms
                                                              for k in ("finest", "fit")]
     lines = ["| " + " | ".join(header) + " |", "|:---|" + "---:|" * (len(header) - 1)]
@@ -327,14 +309,14 @@ def _caption(caption, lead, shown, rows, given=()):
     return " ".join([text] + [latex.escape(line) for line in _failures(rows)])
 
 
-def caption_of(name, cfg=None):
-    """The study in a caption, from its config's fields: d, α, ε as a formula, the exact solution (or the
-    data) typeset, Γ_C; LaTeX with every user-given text escaped."""
+def caption_of(name, cfg=None, variational=False):
+    """The study in a caption, from its config's fields: d, α, ε as a formula (or the Signorini variational
+    inequality), the exact solution (or the data) typeset, Γ_C; LaTeX with every user-given text escaped."""
     text = f"Study {latex.escape(name)}"
     if cfg is None:
         return text
     parts = [f"$d = {cfg.dimension}$"]
-    if cfg.study_type == "signorini":
+    if variational:
         parts.append(r"the Signorini variational inequality ($\varepsilon = 0$)")
     else:
         law = config.LAWS[cfg.epsilon.law]
@@ -389,163 +371,75 @@ def _latex_text(value):
 
 
 def _failures(rows, end="."):
-    return [f"Level {row['level']} (N = {row['N']}) did not converge: {row['reason']}{end}"
-            for row in rows if not row["converged"]]
+    """One line per row that did not converge: its level (a sweep's: its N, α and ε)."""
+    return [f"{_which(row)} did not converge: {row.get('reason')}{end}" for row in rows if row.get("converged") is False]
 
 
-# --- reading a finished or partial study back ---------------------------------------------------
-
-class DamagedResults(OSError):
-    """A study file that cannot be read as a table (cut short, NaN where a count belongs, a group
-    missing): bad input for report and compare, which name the file."""
-
-
-def load(path):
-    """Read a study from its folder, its study.h5 or its rates.csv (no recomputation). A damaged
-    study.h5 gives way to an intact rates.csv beside it (a warning says so)."""
-    path = Path(path)
-    if path.is_dir():
-        h5, csv_path = path / "study.h5", path / "rates.csv"
-        if not h5.exists() and not csv_path.exists():
-            raise FileNotFoundError("neither study.h5 nor rates.csv in this folder (not a study folder)")
-        path = h5 if h5.exists() else csv_path
-    if not path.exists():
-        raise FileNotFoundError("No such file or folder")
-    if path.suffix == ".csv":
-        return _load_csv(path)
-    try:
-        return _load_h5(path)
-    except DamagedResults as err:
-        fallback = path.parent / "rates.csv"
-        if not fallback.exists():
-            raise
-        try:
-            study = _load_csv(fallback)
-        except DamagedResults as also:
-            raise DamagedResults(f"{err}; {also}") from None
-        logger.warning("%s; reading %s instead", err, fallback)
-        return study
-
-
-def _load_h5(path):
-    import h5py
-    try:
-        with h5py.File(path, "r") as h5:
-            attrs = {key: _python(value) for key, value in h5.attrs.items()}
-            if attrs.get("study_type") in ("epsilon_sweep", "total_error"):  # docs/limit.md: no rate table
-                raise ConfigError("study_type", f"an {attrs['study_type']} study has no rate table to report; "
-                                                "its tables are the CSV files next to study.h5 (docs/guide/outputs.md)")
-            rows = _h5_rows(h5, path)
-    except DamagedResults:
-        raise
-    except (OSError, KeyError, ValueError) as err:  # h5py: truncated, or not HDF5 at all
-        raise DamagedResults(f"{path}: damaged, not readable as HDF5 ({_first_line(err)})") from None
-    _check_rows(rows, path)
-    text = attrs.get("config_resolved") or attrs.get("config", "")
-    return Study(attrs.get("study", path.parent.name), path.parent, rows, text, attrs)
-
-
-def _h5_rows(h5, path):
-    table = h5.get("table")
-    if table is None:
-        raise DamagedResults(f"{path}: damaged, no table group")
-    columns = _columns(table)
-    groups = sorted(name for name in h5 if name.startswith("level_"))
-    return [{c: _python(h5[name].attrs.get(c)) for c in columns} for name in groups]
-
-
-def _columns(table):
-    if "columns" in table.attrs:
-        return [str(c) for c in table.attrs["columns"]]
-    names = list(table)  # written before the `columns` attribute: the leading columns first, then by name
-    return [c for c in SPEC_ORDER if c in names] + [c for c in names if c not in SPEC_ORDER]
-
-
-def _python(value):
-    """numpy scalars from h5py as Python values (bool, int, float, str)."""
-    if value is None:
-        return None
-    if isinstance(value, bytes):
-        return value.decode()
-    return value.item() if hasattr(value, "item") and getattr(value, "ndim", 1) == 0 else value
-
-
-def _load_csv(path):
-    try:
-        with open(path, newline="") as f:
-            reader = csv.DictReader(f)
-            raw = list(reader)
-    except (UnicodeDecodeError, csv.Error) as err:
-        raise DamagedResults(f"{path}: damaged, not a CSV table ({_first_line(err)})") from None
-    for k, row in enumerate(raw):
-        if None in row or None in row.values():  # more or fewer fields than the header: cut short
-            raise DamagedResults(f"{path}: damaged, row {k + 1} does not have the header's "
-                                 f"{len(reader.fieldnames)} fields")
-    rows = [{key: _csv_value(value) for key, value in row.items()} for row in raw]
-    _check_rows(rows, path)
-    return Study(path.parent.name, path.parent, rows)
-
-
-# what every row of a study's table holds, whatever else it has
-ROW_TYPES = {"level": int, "N": int, "dofs": int, "h": float, "converged": bool}
-
-
-def _check_rows(rows, path):
-    """Raise DamagedResults naming `path` unless every row has its level's counts and a finite h > 0."""
-    for row in rows:
-        for column, kind in ROW_TYPES.items():
-            if not _valid(row.get(column), kind):
-                raise DamagedResults(f"{path}: damaged, {column} = {row.get(column)!r} "
-                                     f"at level {row.get('level')!r}")
-
-
-def _valid(value, kind):
-    if kind is bool or isinstance(value, bool):
-        return isinstance(value, bool) and kind is bool
-    if not isinstance(value, (int, float)) or not math.isfinite(value):
-        return False
-    return float(value).is_integer() and value >= 0 if kind is int else value > 0
-
-
-def _first_line(err):
-    return str(err).splitlines()[0] if str(err) else type(err).__name__
-
-
-def _csv_value(text):
-    if text == "":
-        return None
-    if text in ("true", "false"):
-        return text == "true"
-    for kind in (int, float):
-        try:
-            return kind(text)
-        except ValueError:
-            pass
-    return text
+def _which(row):
+    if "level" in row:
+        return f"Level {row['level']} (N = {row['N']})"
+    return "Solve " + ", ".join(f"{names.name(k).text} = {row[k]:g}" for k in ("N", "alpha", "epsilon") if k in row)
 
 
 # --- everything a study leaves besides rates.csv and study.h5 -----------------------------------
 
 def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None, suffix=""):
-    """rates<suffix>.md, rates<suffix>.tex and (if `plots`) the figures of `study` (their names with
-    `suffix` too) into `folder`; the paths written. `columns` as output.columns (default: the config's,
+    """The tables (<name><suffix>.md, .tex) and (if `plots`) the figures a study of its type reports, into
+    `folder`; the paths written. `columns` as output.columns for its rate tables (default: the config's,
     else "paper"); given, they also choose the plotted norms. `figure`: plots.Layout options."""
     folder = Path(folder or study.folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    chosen, proven = _columns_of(cfg, columns), proven_rates(cfg)
-    written = [folder / f"rates{suffix}.md", folder / f"rates{suffix}.tex"]
+    shown, figures = studies.of(study.study_type).reported(cfg, study.tables or {"rates": study.rows})
     description = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
-    comment = description.replace("--", "- -")  # "-->" in a description would end the comment
-    written[0].write_text(f"<!-- {comment} -->\n" + markdown_table(study.rows, digits, chosen, proven))
-    written[1].write_text(latex_table(study.rows, digits, caption_of(study.name, cfg), chosen, proven,
-                                      key=latex.label(study.name, suffix)))
-    if plots and study.rows:
-        fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
-        figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))
-        shown = choose(study.rows, chosen, proven)[1] if chosen != "paper" else None
-        written += plotting.write_all(study.rows, folder, proven=proven, title=title(study, cfg),
-                                      fit_levels=fit_levels, shown=shown, suffix=suffix, **figure)
+    chosen, proven = _columns_of(cfg, columns), proven_rates(cfg)
+    written = []
+    for table in shown:
+        path = folder / f"{table.name}{suffix}"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        how = (chosen, proven) if table.paper else ("all", {})
+        part = "" if table.paper and "/" not in table.name else f", table {table.name}"
+        comment = (description + part).replace("--", "- -")  # "-->" in a description would end the comment
+        written.append(path.with_name(path.name + ".md"))
+        written[-1].write_text(f"<!-- {comment} -->\n" + markdown_table(table.rows, digits, *how))
+        caption = caption_of(study.name, cfg, _variational(table.rows)) + latex.escape(part)
+        written.append(path.with_name(path.name + ".tex"))
+        written[-1].write_text(latex_table(table.rows, digits, caption, *how,
+                                           key=latex.label(study.name, table.name if part else "", suffix)))
+    if plots:
+        shown_norms = choose(study.rows, chosen, proven)[1] if chosen != "paper" and study.rows else None
+        written += draw(figures, study, cfg, folder, proven, figure, shown_norms, suffix)
     return written
+
+
+def _variational(rows):
+    """Whether a table's levels solve the Signorini variational inequality (ε = 0 on every level)."""
+    return bool(rows) and all(row.get("epsilon") == 0 for row in rows)
+
+
+def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""):
+    """The study type's figures, each by its kind (convergence figures of the norms `shown`, all if None,
+    their names ending in `suffix`); the paths written."""
+    fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
+    figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))
+    written = []
+    for fig in figures:
+        if fig.kind == "convergence" and fig.data:
+            written += plotting.write_all(fig.data, (folder / fig.name).parent, proven=proven,
+                                          title=title(study, cfg), fit_levels=fit_levels, shown=shown,
+                                          suffix=suffix, **figure)
+        elif fig.kind == "model_error":
+            written += [plotting.model_error(fig.data, folder / f"{fig.name}{suffix}", figure.get("width") or
+                                             plotting.WIDTH_PT) for suffix in (".png", ".pdf")]
+        elif fig.kind == "comparison":
+            written += plotting.write_comparison(fig.data, folder, fit_levels, figure.get("width"))
+    return written
+
+
+def terminal(study, cfg=None):
+    """What a run or `report` prints of a study: its rate tables as format_table, its other tables whole."""
+    shown, _ = studies.of(study.study_type).reported(cfg, study.tables or {"rates": study.rows})
+    texts = [(f"{t.name}:\n" if t is not shown[0] else "") + (format_table(t.rows, cfg) if t.paper else format_rows(t.rows))
+             for t in shown if t.terminal]
+    return "\n\n".join(texts)
 
 
 def proven_rates(cfg):
@@ -558,43 +452,8 @@ def proven_rates(cfg):
 
 
 def title(study, cfg=None):
-    """A one-line plot title: dimension, alpha and the eps law, or the study name alone."""
-    if cfg is None:
-        return study.name
-    if cfg.study_type == "signorini":  # the variational inequality: no alpha, no eps (docs/limit.md)
-        return f"{study.name}: d = {cfg.dimension}, Signorini variational inequality (ε = 0)"
-    law = "θ" + config.LAWS[cfg.epsilon.law].text.format(p=cfg.epsilon.p)
-    return f"{study.name}: d = {cfg.dimension}, α = {cfg.alpha:g}, ε = {law}, θ = {cfg.epsilon.theta:g}"
-
-
-# --- the ε → 0 studies (docs/limit.md): their tables in the terminal, sub-study reports, the figure ----
-
-def write_limit(cfg, result, named):
-    """What an ε-sweep or total-error study leaves besides its tables: each total-error sub-study's
-    rates.md/.tex (and plots), the sweep's model-error figure (plots only with output.plots); the paths."""
-    written = []
-    if cfg.study_type == "total_error":
-        for sub, levels in result.studies.values():
-            if levels:
-                study = Study(sub.study, sub.output_dir, results.table(levels))
-                written += write(study, sub, sub.output.digits, plots=sub.output.plots)
-    elif cfg.output.plots and named.get("sweep"):
-        finest = max(row["N"] for row in named["sweep"])
-        rows = [row for row in named["sweep"] if row["N"] == finest]
-        written += [plotting.model_error(rows, cfg.output_dir / f"model_error{suffix}") for suffix in (".png", ".pdf")]
-    return written
-
-
-def limit_summary(cfg, named, written):
-    """The terminal text of an ε-sweep or total-error study: its reference, fitted or total table."""
-    lines = [f"study {cfg.study} ({cfg.study_type}): {cfg.output_dir}"]
-    for name in ("reference", "fitted", "total"):
-        if name in named:
-            lines.append(f"\n{name}:\n{format_rows(named[name])}")
-    files = [f"{name}.csv" for name in named] + [str(path.relative_to(cfg.output_dir)) for path in written]
-    lines.append("wrote " + (", ".join(files) if len(files) <= 4 else f"{len(files)} tables and figures "
-                             "(rates.md, rates.tex, plots) in the sub-study folders"))
-    return "\n".join(lines)
+    """A one-line plot title: the study type's, or the study name alone."""
+    return studies.of(study.study_type).title(cfg, study.name) if cfg is not None else study.name
 
 
 def format_rows(rows):

@@ -1,18 +1,25 @@
-"""The refinement study: one solved and measured level per mesh of the family."""
+"""The refinement study: one solved and measured level per mesh of the family; its rate table, verdict
+and convergence figures."""
 import time
 
 from mpi4py import MPI
 from dolfinx import fem
 
+from .. import config
 from ..meshing import meshes
 from ..problems import compliance, measure
 from ..solve import solver, strategies
 from ..system import timing
+from ..analysis import verdict
 from . import fields, stability, verification
-from .level import Level
+from .level import Figure, Level, Table, rate_table, work_precision_rows
+
+NAME = "refinement"
+UNIT = "levels"  # what status.txt and the progress lines count
+RESUMABLE = True  # --resume continues after the levels in study.h5
 
 
-def run_refinement(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     """Solve every level of `cfg` (after the levels `done`); on_level(levels_so_far) after each."""
     levels = list(done)
     if done and not done[-1].outcome.converged and cfg.solver.on_failure == "stop":
@@ -26,7 +33,6 @@ def run_refinement(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=(
         if levels[-1].outcome.converged:
             previous = strategies.Handoff(levels[-1].solution)
         levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
-        verification.add_rates(levels)
         if on_level is not None:
             on_level(levels)
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
@@ -103,3 +109,40 @@ def timing_columns(outcome, phases, comm, mesh_peak_mb):
     if outcome.floor_s is not None:
         columns.update(t_linear_floor=outcome.floor_s, floor_ratio=columns["t_newton"] / outcome.floor_s)
     return columns
+
+
+def tables(cfg, levels):
+    """The record's tables, the main one first: rates and work_precision."""
+    rows = rate_table(levels)
+    return {"rates": rows, "work_precision": work_precision_rows(rows)}
+
+
+def summary(cfg, levels):
+    """The verdict against the paper's rates (summary.csv)."""
+    return verdict.summarize(cfg, levels)
+
+
+def levels_of(levels):
+    """The Levels recorded one group each in study.h5."""
+    return levels
+
+
+def parts(cfg, levels):
+    """Studies of their own inside this one: none."""
+    return []
+
+
+def reported(cfg, named):
+    """The rate table and its convergence figures."""
+    return [Table("rates", named["rates"], paper=True)], [Figure("convergence", "convergence", named["rates"])]
+
+
+def compared(named):
+    """What `compare` overlays: the rate table."""
+    return {"": named["rates"]}
+
+
+def title(cfg, name):
+    """A one-line plot title: dimension, α and the ε law."""
+    law = "θ" + config.LAWS[cfg.epsilon.law].text.format(p=cfg.epsilon.p)
+    return f"{name}: d = {cfg.dimension}, α = {cfg.alpha:g}, ε = {law}, θ = {cfg.epsilon.theta:g}"

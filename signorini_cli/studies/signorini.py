@@ -1,4 +1,5 @@
-"""The Signorini VI as a refinement study (paper eq. (8), docs/limit.md): the rate table with ε = 0."""
+"""The Signorini VI as a refinement study (paper eq. (8), docs/limit.md): the rate table with ε = 0,
+recorded and reported as a refinement study's."""
 import time
 
 from mpi4py import MPI
@@ -9,9 +10,14 @@ from ..meshing.meshes import FACES_2D, FACES_3D
 from ..problems import compliance, measure, vi
 from ..solve import solver
 from .level import Level
+from .refinement import compared, levels_of, parts, reported, summary, tables  # noqa: F401  the same record
+
+NAME = "signorini"
+UNIT = "levels"
+RESUMABLE = False  # the VI's levels are not read back from study.h5
 
 
-def run_signorini(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
+def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     """The VI refinement study: one Level per mesh, the rate table with ε = 0; each level starts
     from the last converged one as the strategy says (nested iteration)."""
     levels, previous = [], None
@@ -45,3 +51,8 @@ def signorini_level(cfg, index, domain, start, previous=None, monitor=None):
     elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
     dofs = solver.global_dofs(V)
     return Level(index, domain.n, domain.h, dofs, 0.0, outcome, errors, elapsed, extra), u_h
+
+
+def title(cfg, name):
+    """A one-line plot title: the variational inequality has no α and no ε."""
+    return f"{name}: d = {cfg.dimension}, Signorini variational inequality (ε = 0)"

@@ -3,7 +3,6 @@ errors against a reference solution for data-only scenes; written as Level.extra
 import ufl
 from mpi4py import MPI
 
-from ..analysis import rates
 from ..config import names
 from ..meshing.meshes import CONTACT
 from ..problems import compliance, measure
@@ -104,17 +103,6 @@ def error_columns(cfg, wanted, has_contact, with_reference):
     if cfg.problem.exact is None:  # against the reference instead of an exact solution
         columns = ["L2_ref", "H1_ref"] + [f"{name}_ref" for name in columns] if with_reference else []
     return columns + (["diff_L2", "diff_H1"] if "diff" in wanted else [])
-
-
-def add_rates(levels):
-    """Fill rate_<column> of every extra error column from the levels' measured h."""
-    if not levels:
-        return
-    h = [lv.h for lv in levels]
-    ok = [lv.outcome.converged for lv in levels]
-    for name in [k for k in levels[0].extra if f"rate_{k}" in levels[0].extra]:
-        for lv, rate in zip(levels, rates.observed(h, [lv.extra.get(name) for lv in levels], ok)):
-            lv.extra[f"rate_{name}"] = rate
 
 
 def _wanted(name, wanted):

@@ -7,7 +7,7 @@ import h5py
 import pytest
 
 from signorini_cli.analysis import verdict
-from signorini_cli.record import results
+from signorini_cli.record import csvfile, h5 as record_h5, results
 from signorini_cli.solve.solver import Outcome
 from signorini_cli.studies import Level
 
@@ -110,12 +110,11 @@ def test_quantities_get_gci_for_data_only_scenes(make_config):
 def test_summary_csv_and_h5(make_config, tmp_path):
     cfg = make_config(expect={"rates": {"L2": 2.0}})
     summary = verdict.summarize(cfg, levels({"L2": [h**2 for h in H], "H1": [h for h in H]}))
-    rows = list(csv.DictReader(io.StringIO(results.csv_text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS))))
+    rows = list(csv.DictReader(io.StringIO(csvfile.text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS))))
     assert [(r["kind"], r["name"], r["verdict"]) for r in rows] == [
         ("norm", "L2", "agrees"), ("norm", "H1", "agrees"), ("expect", "L2", "")]
     assert float(rows[0]["proven_rate"]) == 2 and rows[0]["paper"] == "Lemma 4.2" and rows[2]["met"] == "true"
-    with h5py.File(tmp_path / "s.h5", "w") as h5:
-        verdict.write_h5(h5.create_group("verification"), summary)
+    record_h5.write(tmp_path / "s.h5", {}, {}, summary_rows=results.summary_record(summary))
     with h5py.File(tmp_path / "s.h5") as h5:
         assert h5["verification/norm/L2"].attrs["verdict"] == "agrees"
         assert h5["verification"].attrs["expectations_met"]

@@ -19,7 +19,7 @@ import yaml
 from mpi4py import MPI
 
 from signorini_cli.app import cli, guard
-from signorini_cli.record import results
+from signorini_cli.record import h5 as record_h5, results
 from signorini_cli.report import tables
 from signorini_cli.solve import solver
 from conftest import BASE, merge
@@ -108,13 +108,13 @@ def test_full_disk_mid_study_same_levels_and_status(tmp_path, monkeypatch, capsy
     """study.h5 of level 2 finds the disk full (simulated): rates.csv and study.h5 both keep levels 0-1,
     status.txt says why (written in place, as the full disk refuses new files too), exit 2, one line."""
     config, out = write_config(tmp_path, refinements=(4, 8, 12)), tmp_path / "out"
-    write_h5 = results._write_h5
+    write_h5 = record_h5.write
 
-    def full_at_level_2(path, cfg, levels, *args):
-        if len(levels) >= 3:
+    def full_at_level_2(path, attrs, *args, **kwargs):
+        if attrs["levels_done"] >= 3:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
-        return write_h5(path, cfg, levels, *args)
-    monkeypatch.setattr(results, "_write_h5", full_at_level_2)
+        return write_h5(path, attrs, *args, **kwargs)
+    monkeypatch.setattr(record_h5, "write", full_at_level_2)
     assert cli.main(["run", config, "--output", str(out), "--quiet"]) == guard.BAD_SURROUNDINGS
     assert capsys.readouterr().err == (f"signorini: error: {out}/t: cannot write the results: No space left "
                                        f"on device; failed at level 2: the 2 finished level(s) are in {out}/t; "

@@ -63,7 +63,7 @@ def test_bounds_respected_at_gamma_c_nodes_two_ranks(signorini_config):
 def test_rates_manufactured_signorini(signorini_config):
     cfg = signorini_config(mesh={"refinements": [8, 16, 32]})
     levels = studies.run_study(cfg)
-    rows = results.table(levels)
+    rows = studies.level.rate_table(levels)
     assert all(row["converged"] and row["epsilon"] == 0.0 for row in rows)
     # the paper's table bounds u_eps − u_eps,h: nothing it proves applies to the VI's errors
     assert {v.norm: v.verdict for v in verdict.summarize(cfg, levels).norms} == {"L2": verdict.NOT_COVERED,

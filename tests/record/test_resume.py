@@ -81,7 +81,7 @@ def test_resume_refuses_unreadable_h5(tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["run", path, "--resume"]) == cli.EXIT_BAD_INPUT
     err = capsys.readouterr().err
-    assert "--resume: cannot read" in err and err.count("\n") == 1
+    assert "--resume: " in err and "study.h5: damaged, not readable as HDF5" in err and err.count("\n") == 1
 
 
 def test_differences_names_changed_keys():
@@ -149,4 +149,69 @@ def test_resume_refuses_other_study_types(tmp_path, capsys):
                         problem={"exact": None, "f": "-10"})
     assert cli.main(["run", path, "--resume"]) == cli.EXIT_BAD_INPUT
     assert capsys.readouterr().err == (f"signorini: error: {path}: --resume: study_type signorini runs from the "
-                                       "start; use --force\n")
+                                       "start; use --force to start over\n")
+
+
+def stopped_study(tmp_path, refinements=(4, 8, 12)):
+    """A study run to its end, then cut back to its first two levels as a killed run leaves it."""
+    path = write_config(tmp_path, mesh={"refinements": list(refinements)})
+    assert cli.main(["run", path, "--quiet"]) == cli.EXIT_OK
+    folder = Path(tmp_path) / "out" / "t"
+    return path, folder
+
+
+def refused_once(path, capsys, *expected):
+    """--resume ends with exit 2 and one line naming the damage; nothing solved, nothing rewritten."""
+    folder = Path(path).parent / "out" / "t"
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    assert cli.main(["run", path, "--resume", "--quiet"]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"signorini: error: {path}: --resume: ") and "Traceback" not in err
+    for text in expected:
+        assert text in err
+    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before  # rates.csv keeps every row
+
+
+def test_resume_refuses_a_missing_level_group(tmp_path, capsys):
+    """A level group gone from the middle: refused by its index (never solved again, no row dropped)."""
+    path, folder = stopped_study(tmp_path)
+    with h5py.File(folder / "study.h5", "a") as h5:
+        del h5["level_01"]
+    refused_once(path, capsys, "no group level_01", "use --force to start over")
+
+
+@pytest.mark.parametrize("name, value, wanted", [
+    ("N", "eight", "not a whole number"), ("converged", 2.5, "not true or false"),
+    ("h", float("nan"), "not a finite number"), ("newton_its", 3.5, "not a whole number")])
+def test_resume_refuses_a_wrong_typed_attribute(tmp_path, capsys, name, value, wanted):
+    path, folder = stopped_study(tmp_path, (4, 8))
+    with h5py.File(folder / "study.h5", "a") as h5:
+        h5["level_01"].attrs[name] = value
+    refused_once(path, capsys, f"level_01 attribute {name} is", wanted)
+
+
+def test_resume_refuses_a_level_without_history(tmp_path, capsys):
+    path, folder = stopped_study(tmp_path, (4, 8))
+    with h5py.File(folder / "study.h5", "a") as h5:
+        del h5["level_00/residuals"]
+    refused_once(path, capsys, "level_00 is damaged")
+
+
+def test_resume_reads_levels_by_index_and_keeps_every_row(tmp_path):
+    """Levels come back in index order whatever order HDF5 lists them in; a resumed study's rates.csv
+    has every row the stopped one had, unchanged, and the rest."""
+    path, folder = stopped_study(tmp_path, (4, 8))
+    complete = rows(tmp_path)
+    cfg = config.load(path)
+    levels = resume.read_levels(cfg)
+    assert [lv.index for lv in levels] == [0, 1] and [lv.n for lv in levels] == [4, 8]
+    results.write(cfg, levels[:1])  # as a run stopped after level 0 leaves it
+    assert cli.main(["run", path, "--resume", "--quiet"]) == cli.EXIT_OK
+    assert same_table(rows(tmp_path), complete)
+
+
+def test_resume_refuses_a_record_without_its_table(tmp_path, capsys):
+    path, folder = stopped_study(tmp_path, (4, 8))
+    with h5py.File(folder / "study.h5", "a") as h5:
+        del h5["table"]
+    refused_once(path, capsys, "no table group")

@@ -144,22 +144,22 @@ def test_summary_table_one_line_per_study():
 
 @pytest.mark.parametrize("name", ["study.h5", "rates.csv", ""])
 def test_load_partial_study(partial_study, name):
-    loaded = tables.load(partial_study.output_dir / name)
+    loaded = results.load(partial_study.output_dir / name)
     assert loaded.name == "t" and [r["N"] for r in loaded.rows] == [4, 8]
-    assert list(loaded.rows[0])[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
+    assert list(loaded.rows[0])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
     assert loaded.rows[0]["rate_L2"] is None and loaded.rows[1]["rate_L2"] > 1
     assert loaded.rows[1]["converged"] is True and isinstance(loaded.rows[1]["dofs"], int)
 
 
 def test_load_h5_and_csv_agree(partial_study):
-    from_h5, from_csv = (tables.load(partial_study.output_dir / n) for n in ("study.h5", "rates.csv"))
+    from_h5, from_csv = (results.load(partial_study.output_dir / n) for n in ("study.h5", "rates.csv"))
     assert from_h5.rows == from_csv.rows  # CSV floats are repr(): exact
     assert config.loads(from_h5.config_text).mesh.refinements == (4, 8, 16)  # the resolved config
 
 
 def test_load_missing_path_names_problem(tmp_path):
     with pytest.raises(FileNotFoundError, match="not a study folder"):
-        tables.load(tmp_path)
+        results.load(tmp_path)
 
 
 def cut_csv(folder):
@@ -180,8 +180,8 @@ def nan_in_n(folder):
 def test_damaged_csv_names_the_file(partial_study, damage, message):
     folder = partial_study.output_dir
     damage(folder)
-    with pytest.raises(tables.DamagedResults, match=message):
-        tables.load(folder / "rates.csv")
+    with pytest.raises(results.DamagedResults, match=message):
+        results.load(folder / "rates.csv")
 
 
 def drop_table(folder):
@@ -198,13 +198,13 @@ def truncate_h5(folder):
 @pytest.mark.parametrize("damage", [drop_table, truncate_h5])
 def test_damaged_h5_falls_back_to_rates_csv(partial_study, damage, caplog):
     folder = partial_study.output_dir
-    intact = tables.load(folder / "rates.csv").rows
+    intact = results.load(folder / "rates.csv").rows
     damage(folder)
-    assert tables.load(folder).rows == intact
+    assert results.load(folder).rows == intact
     assert "study.h5: damaged" in caplog.text and "reading" in caplog.text
     cut_csv(folder)
-    with pytest.raises(tables.DamagedResults, match="study.h5: damaged.*; .*rates.csv: damaged"):
-        tables.load(folder)
+    with pytest.raises(results.DamagedResults, match="study.h5: damaged.*; .*rates.csv: damaged"):
+        results.load(folder)
 
 
 @pytest.mark.fast
@@ -232,7 +232,7 @@ def test_columns_choose_the_plotted_norms(tmp_path, monkeypatch):
         drawn.append([line.get_label().split()[0] for ax in fig.axes for line in ax.lines])
         return fig
     monkeypatch.setattr(plots, "convergence", recorded)
-    study = tables.Study("demo", tmp_path, demo_like(3))
+    study = results.Study("demo", tmp_path, demo_like(3))
     tables.write(study, DEMO, columns=["N", "H1"], suffix="-N-H1")
     assert (tmp_path / "rates-N-H1.tex").exists() and not (tmp_path / "rates.tex").exists()
     assert drawn == [["H¹"]]

@@ -75,14 +75,14 @@ def run_sweep(tmp_path, comm=MPI.COMM_WORLD, **changes):
 
 def test_sweep_decreases_monotonically_small_mesh(tmp_path):
     cfg, sweep = run_sweep(tmp_path)
-    rows = results.sweep_table(sweep)
+    rows = studies.sweep.sweep_table(sweep)
     for alpha in cfg.limit.alpha:
         group = [row for row in rows if row["alpha"] == alpha]
         assert [row["epsilon"] for row in group] == list(cfg.limit.epsilon)
-        for m in results.MODEL_ERRORS:
+        for m in studies.sweep.MODEL_ERRORS:
             values = [row[m] for row in group]
             assert all(b < a for a, b in zip(values, values[1:])), (alpha, m, values)
-    fitted = {row["alpha"]: row for row in results.fitted_table(sweep, cfg.limit.fit_last)}
+    fitted = {row["alpha"]: row for row in studies.sweep.fitted_table(sweep, cfg.limit.fit_last)}
     # N=8, ε = 1e-4..1e-6: measured H1 slopes 0.99, 0.44, 0.25 for α = 1, 2, 3 (→ 1/α as ε → 0,
     # later for larger α: docs/limit.md); 0.05 = the α = 1 margin, the order in α is the finding
     assert fitted[1.0]["fit_H1"] == pytest.approx(1.0, abs=0.05)
@@ -97,7 +97,7 @@ def test_sweep_two_ranks_match_one(tmp_path):
     _, serial = run_sweep(tmp_path, comm=MPI.COMM_SELF)
     for p, s in zip(parallel.points, serial.points):
         assert (p.alpha, p.eps) == (s.alpha, s.eps)
-        for m in results.MODEL_ERRORS:
+        for m in studies.sweep.MODEL_ERRORS:
             assert p.differences[m] == pytest.approx(s.differences[m], rel=RTOL)
 
 
@@ -109,19 +109,18 @@ def test_sweep_writes_documented_tables(tmp_path, capsys):
     folder = tmp_path / "out" / "t"
     with open(folder / "sweep.csv") as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == list(results.SWEEP_COLUMNS)  # README: Results of the ε → 0 studies
+    assert list(rows[0]) == list(studies.sweep.SWEEP_COLUMNS)  # README: Results of the ε → 0 studies
     assert len(rows) == 3 * len(SWEEP["limit"]["epsilon"]) and rows[0]["rate_H1"] == "" and float(rows[1]["rate_H1"]) > 0
     with open(folder / "fitted.csv") as f:
         assert [row["alpha"] for row in csv.DictReader(f)] == ["1.0", "2.0", "3.0"]
     with open(folder / "reference.csv") as f:
         reference = list(csv.DictReader(f))
-    assert list(reference[0])[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
+    assert list(reference[0])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
     with h5py.File(folder / "study.h5") as h5:
-        assert h5.attrs["study_type"] == "epsilon_sweep" and sorted(h5) == ["fitted", "reference", "sweep"]
+        assert h5.attrs["study_type"] == "epsilon_sweep" and sorted(h5) == ["fitted", "reference", "table"]
+        assert h5["table"].attrs["table"] == "sweep"  # the main table, named by its CSV file
     assert (folder / "model_error.png").stat().st_size > 10_000  # output.plots (default): the ε plot
     assert cli.main(["run", str(path)]) == cli.EXIT_BAD_INPUT  # results exist: --force needed
-    assert cli.main(["report", str(folder)]) == cli.EXIT_BAD_INPUT  # no rate table to report
-    assert "epsilon_sweep study has no rate table" in capsys.readouterr().err
     assert not list(folder.glob(".*.tmp*"))
 
 
@@ -135,7 +134,7 @@ def test_total_error_writes_spec_tables(make_config):
     for name in total.studies:
         with open(cfg.output_dir / name / "rates.csv") as f:
             rows = list(csv.DictReader(f))
-        assert list(rows[0])[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS) and len(rows) == 2
+        assert list(rows[0])[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS) and len(rows) == 2
     h = [row["h"] for row in rows]
     with open(cfg.output_dir / "total.csv") as f:
         summary = {row["study"]: row for row in csv.DictReader(f)}

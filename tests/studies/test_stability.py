@@ -24,7 +24,7 @@ def test_condition_grows_like_inverse_eps(make_config):
 
 def test_stability_columns_follow_the_config(make_config):
     def columns(**solver):
-        rows = results.table(studies.run_study(make_config(solver=solver), comm=MPI.COMM_SELF))
+        rows = studies.level.rate_table(studies.run_study(make_config(solver=solver), comm=MPI.COMM_SELF))
         return rows, [c for c in rows[0] if c in stability.SOLVER_COLUMNS]
 
     # 2-D direct solve, no continuation, no condition asked for

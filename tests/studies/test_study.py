@@ -11,7 +11,7 @@ from signorini_cli.solve import solver, strategies, transfer
 
 
 def last_rates(cfg):
-    rows = results.table(studies.run_study(cfg))
+    rows = studies.level.rate_table(studies.run_study(cfg))
     assert all(row["converged"] for row in rows)
     return rows[-1]["rate_H1"], rows[-1]["rate_L2"]
 
@@ -44,7 +44,7 @@ def test_demo_level_matches_independent_value(make_config):
 
 def test_data_only_scene_has_no_error_columns(make_config):
     cfg = make_config(problem={"exact": None, "f": "-10"})
-    rows = results.table(studies.run_study(cfg))
+    rows = studies.level.rate_table(studies.run_study(cfg))
     assert all(row["converged"] for row in rows)
     assert not {"L2", "H1", "rate_L2", "rate_H1"} & set(rows[0])
 

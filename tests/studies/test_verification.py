@@ -28,11 +28,11 @@ def test_manufactured_study_gamma_c_columns(make_config):
     with open(cfg.output_dir / "rates.csv") as f:
         rows = list(csv.DictReader(f))
     header = list(rows[0])
-    assert header[:len(results.SPEC_COLUMNS)] == list(results.SPEC_COLUMNS)
+    assert header[:len(studies.level.LEADING_COLUMNS)] == list(studies.level.LEADING_COLUMNS)
     measured = [c for c in header if not results.is_timing(c)]  # the t_* timing columns come last
     assert measured[-len(GAMMA_C):] == GAMMA_C  # after the leading and solver columns, in this order
     assert rows[0]["rate_L2_gc"] == "" and rows[0]["L2_gc"] != ""
-    last = levels[-1].extra
+    last = studies.level.rate_table(levels)[-1]  # the rates: computed with the table
     # N=16->32 observed L2_gc 1.97, pos_gc_scaled 3.45, energy_err 0.995 (2026-11 run); proven: none,
     # O(h^{3/2}) (Cor. 3.2 ii), O(h) (Lemma 3.1); 0.1 = pre-asymptotic margin
     assert last["rate_L2_gc"] >= 1.9

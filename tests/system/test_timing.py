@@ -46,7 +46,7 @@ def test_errors_of_the_fast_paths_equal_the_plain_path(scene, make_config):
 def test_phase_columns_split_the_level_time(tmp_path, make_config):
     cfg = make_config(mesh={"refinements": [8, 16, 32]}, solver={"linear_floor": True})
     levels = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done), comm=MPI.COMM_SELF)
-    rows = results.table(levels)
+    rows = studies.level.rate_table(levels)
     for row in rows:
         # the level's own phases split time_s; t_output (the record written after time_s was taken) apart
         parts = [row[f"t_{name}"] for name in timing.PHASES if name not in ("linear", "pc_setup", "newton", "output")]
@@ -68,7 +68,7 @@ def test_work_precision_csv_has_every_norm_and_level(tmp_path, make_config):
         table = list(csv.DictReader(f))
     with open(cfg.output_dir / "work_precision.csv") as f:
         work = list(csv.DictReader(f))
-    assert list(work[0]) == list(results.WORK_PRECISION_COLUMNS)
+    assert list(work[0]) == list(studies.level.WORK_PRECISION_COLUMNS)
     norms = rates.error_columns(table)
     assert {"L2", "H1", "L2_gc", "energy_err"} <= set(norms)
     assert len(work) == len(norms) * len(table)

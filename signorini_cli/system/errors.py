@@ -1,0 +1,9 @@
+"""The one line a failure of bad input or surroundings ends with: `signorini: error: SOURCE: MESSAGE`."""
+import sys
+
+
+def print_error(source, message, program="signorini"):
+    """Print the error line to stderr (no source: `program: error: MESSAGE`), the message joined into
+    one line whatever it holds."""
+    text = " ".join(str(message).split("\n"))
+    print(f"{program}: error: " + (f"{source}: {text}" if source else text), file=sys.stderr)
