@@ -430,7 +430,7 @@ def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""
             written += [plotting.model_error(fig.data, folder / f"{fig.name}{suffix}", figure.get("width") or
                                              plotting.WIDTH_PT) for suffix in (".png", ".pdf")]
         elif fig.kind == "comparison":
-            written += plotting.write_comparison(fig.data, folder, fit_levels, figure.get("width"))
+            written += plotting.write_comparison(fig.data, folder, figure.get("width"))
     return written
 
 
