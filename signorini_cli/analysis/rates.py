@@ -36,16 +36,57 @@ def error_columns(rows):
 def fitted(h, errors, valid, k=3, log_factor=False):
     """Least-squares slope of log e against log h over the last k usable levels (None if fewer than 2).
     With log_factor the fit is of e/|ln h|: the slope that should reach p when e = O(h^p |ln h|)."""
+    found = fit(h, errors, valid, k, log_factor)  # |ln h| vanishes at h = 1: such levels are left out
+    return None if found is None else found.slope
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted slope with its uncertainty: `se` the regression's standard error (None with 2 levels),
+    `rates` the successive rates between the fitted levels, `half` the interval's half-width."""
+    slope: float
+    se: float
+    rates: tuple
+    levels: tuple  # indices of the fitted levels
+
+    @property
+    def drift(self):
+        """How far the successive rates inside the fit move: the rate is not settled by this much."""
+        return max(self.rates) - min(self.rates) if self.rates else 0.0
+
+    @property
+    def half(self):
+        """max(2 se, drift): 2 se is the ~95 % band of a slope with normal residuals; the drift bounds
+        where the next level's rate may land when the rates still move (with 3 levels the residual
+        is the drift itself, se = drift/sqrt(12))."""
+        return max(2 * (self.se or 0.0), self.drift)
+
+    @property
+    def lo(self):
+        return self.slope - self.half
+
+    @property
+    def hi(self):
+        return self.slope + self.half
+
+
+def fit(h, errors, valid, k=3, log_factor=False):
+    """The least-squares slope of `fitted` with its standard error and the successive rates of the
+    same levels (None if fewer than 2 usable levels)."""
     last = usable(errors, valid)[-k:]
     if log_factor:
-        last = [i for i in last if h[i] < 1]  # |ln h| vanishes at h = 1
+        last = [i for i in last if h[i] < 1]
     if len(last) < 2 or len({h[i] for i in last}) < 2:
         return None
     log_h = np.log([h[i] for i in last])
-    log_e = np.log([errors[i] for i in last])
-    if log_factor:
-        log_e = log_e - np.log(-log_h)
-    return float(np.polyfit(log_h, log_e, 1)[0])
+    log_e = np.log([errors[i] for i in last]) - (np.log(-log_h) if log_factor else 0.0)
+    (slope, intercept), se = np.polyfit(log_h, log_e, 1), None
+    if len(last) > 2:
+        residual = log_e - (slope * log_h + intercept)
+        sxx = float(np.sum((log_h - log_h.mean()) ** 2))
+        se = math.sqrt(float(np.sum(residual**2)) / (len(last) - 2) / sxx)
+    steps = np.diff(log_e) / np.diff(log_h)
+    return Fit(float(slope), se, tuple(float(r) for r in steps), tuple(last))
 
 
 # --- the paper's proven rates ----------------------------------------------------------------------
@@ -126,7 +167,8 @@ def base_norm(norm):
 def expected(dimension, alpha, p, norm):
     """The best rate PAPER_RATES proves for ‖·‖ = norm when d = dimension, alpha, eps = theta h^p."""
     if not alpha_admissible(dimension, alpha):
-        return Expected(None, reason="alpha outside the paper's condition (5)")
+        bound = f"α = {alpha:g} > 3" if dimension == 3 and alpha > 3 else f"α = {alpha:g} < 1"
+        return Expected(None, reason=f"{bound}, condition (5)")
     norm = base_norm(norm)
     records = [r for r in PAPER_RATES if dimension in r.dimensions and r.norm == norm
                and ALPHA_CONDITIONS[r.alpha](alpha)]
