@@ -43,7 +43,8 @@ def fitted(h, errors, valid, k=3, log_factor=False):
 @dataclass(frozen=True)
 class Fit:
     """A fitted slope with its uncertainty: `se` the regression's standard error (None with 2 levels),
-    `rates` the successive rates between the fitted levels, `half` the interval's half-width."""
+    `rates` the successive rates between the fitted levels. The interval [lo, hi] holds slope ± 2 se
+    (~95 % for normal residuals), every successive rate of the fit and `limit`, where the rates head."""
     slope: float
     se: float
     rates: tuple
@@ -55,19 +56,28 @@ class Fit:
         return max(self.rates) - min(self.rates) if self.rates else 0.0
 
     @property
-    def half(self):
-        """max(2 se, drift): 2 se is the ~95 % band of a slope with normal residuals; the drift bounds
-        where the next level's rate may land when the rates still move (with 3 levels the residual
-        is the drift itself, se = drift/sqrt(12))."""
-        return max(2 * (self.se or 0.0), self.drift)
+    def limit(self):
+        """The last rate moved on by its last change: rates that settle like r(h) = p + c h + ... change
+        by half as much on each halving of h, so the rest of the way adds up to the last change."""
+        return self.rates[-1] + (self.rates[-1] - self.rates[-2]) if len(self.rates) > 1 else self.rates[-1]
 
     @property
     def lo(self):
-        return self.slope - self.half
+        return min(self.slope - 2 * (self.se or 0.0), self.limit, *self.rates)
 
     @property
     def hi(self):
-        return self.slope + self.half
+        return max(self.slope + 2 * (self.se or 0.0), self.limit, *self.rates)
+
+    @property
+    def half(self):
+        """Half the interval's width."""
+        return (self.hi - self.lo) / 2
+
+    @property
+    def drifting(self):
+        """Whether the moving rates, not the fit's residual, make the interval this wide."""
+        return max(self.limit, *self.rates) - min(self.limit, *self.rates) >= 4 * (self.se or 0.0)
 
 
 def fit(h, errors, valid, k=3, log_factor=False):

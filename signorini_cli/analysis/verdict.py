@@ -115,6 +115,8 @@ def norm_verdict(cfg, levels, norm):
     verdict, reason = decide(found, proven.rate, cfg.verification.tolerance,
                              proven.reason or proven.conditions)
     if verdict in (AGREES, EXCEEDS, BELOW):
+        verdict, reason = shallower(cfg, levels, norm, proven, found, verdict, reason)
+    if verdict in (AGREES, EXCEEDS, BELOW):
         reason += caveat(cfg, levels, found)
     return NormVerdict(norm, found and found.slope, plain and plain.slope, proven.rate, proven.log_factor,
                        verdict, proven.reference, proven.conditions or proven.reason, used,
@@ -159,17 +161,33 @@ def decide(found, proven, widest, why=""):
     if found is None or len(found.levels) < MIN_LEVELS:
         fitted = 0 if found is None else len(found.levels)
         return INCONCLUSIVE, f"too few levels: {fitted} converged in the fit, {MIN_LEVELS} needed"
-    shown = f"observed {found.slope:.2f} ± {found.half:.2f}"
+    shown = f"observed {found.slope:.2f} in [{found.lo:.2f}, {found.hi:.2f}]"
     if found.half > widest:
-        if found.drift >= 2 * (found.se or 0.0):
+        if found.drifting:
             moves = " -> ".join(f"{r:.2f}" for r in found.rates)
-            return INCONCLUSIVE, f"{shown}: rates still drifting ({moves}), wider than ± {widest:g}"
-        return INCONCLUSIVE, f"{shown}: the fit's residual is wider than ± {widest:g}"
+            return INCONCLUSIVE, f"{shown}, wider than ± {widest:g}: rates still drifting ({moves})"
+        return INCONCLUSIVE, f"{shown}, wider than ± {widest:g}: the fit's residual"
     if found.lo - ROUND_OFF <= proven <= found.hi + ROUND_OFF:
         return AGREES, f"{shown} contains proven {proven:.3g}"
     if found.lo > proven:
         return EXCEEDS, f"{shown} > proven {proven:.3g}: the bound is not sharp on this case"
     return BELOW, f"{shown} < proven {proven:.3g}: below the bound (a finding, or a hypothesis fails)"
+
+
+def shallower(cfg, levels, norm, proven, deep, verdict, reason):
+    """A reference-error verdict checked one reference depth shallower (errors `<norm>_shallow`, measured
+    when reference_refinements >= 2): the class must not depend on the depth, else it is inconclusive."""
+    shallow = [lv.errors.get(f"{norm}_shallow") for lv in levels]
+    if not norm.endswith("_ref") or not any(shallow):
+        return verdict, reason
+    found = rates.fit([lv.h for lv in levels], shallow, [lv.outcome.converged for lv in levels],
+                      cfg.verification.fit_levels, proven.log_factor)
+    other, _ = decide(found, proven.rate, cfg.verification.tolerance)
+    if other == verdict:
+        return verdict, reason
+    k = cfg.verification.reference_refinements
+    return INCONCLUSIVE, (f"references {k} refinements finer: {deep.slope:.2f} ({verdict}), {k - 1} finer: "
+                          f"{_rate(found and found.slope)} ({other}): the reference depth decides")
 
 
 def caveat(cfg, levels, found):
@@ -218,8 +236,8 @@ def format_summary(summary):
     lines = []
     if summary.outside_theory:
         lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
-    lines.append(f"verification: rates fitted over the last {summary.fit_levels} levels, interval = fit ± "
-                 f"max(2 standard errors, drift of the successive rates); inconclusive beyond ± {summary.tolerance:g}")
+    lines.append(f"verification: rates fitted over the last {summary.fit_levels} levels; interval: the fit ± 2 "
+                 f"standard errors, the successive rates and where they head; inconclusive beyond ± {summary.tolerance:g}")
     lines += [f"  {note}" for note in summary.notes]
     rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
     for v in summary.norms:

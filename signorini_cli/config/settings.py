@@ -39,7 +39,7 @@ COORDINATES = {2: ("x", "y"), 3: ("x", "y", "z")}
 # verification.measures: what a level measures beyond L2/H1 (issue 4; README "Verification")
 MEASURES = names.MEASURE_KEYS
 REFERENCE_EPSILONS = ("per_level", "fixed")
-MAX_REFERENCE_REFINEMENTS = 2
+MAX_REFERENCE_REFINEMENTS = 3  # depth 3 is 64 (2-D) or 512 (3-D) times a level's cells
 # rate columns an `expect:` block may name: exact-solution errors, errors against a reference, differences
 ERROR_NORMS, REFERENCE_NORMS = names.ERROR_NORMS, names.REFERENCE_NORMS
 STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error")  # the last three: docs/limit.md
@@ -201,7 +201,8 @@ class Verification:
     tolerance: float = key(0.2, "verdict: inconclusive when the fitted rate's interval is wider than "
                                 "± tolerance (0.2: half the smallest gap between two proven rates, 8/5 and 2)")
     measures: tuple = key(None, f"a list of {', '.join(MEASURES)}; null: every measure the scene can have")
-    reference_refinements: int = key(1, "reference N = finest N * 2^k, k in 0 (none), 1, 2",
+    reference_refinements: int = key(2, "each level against its own mesh refined k times, k in 0 (none) .. 3; "
+                                        "k >= 2 also checks the verdict at depth k - 1",
                                      only="only without problem.exact")
     reference_epsilon: str = key("per_level", "per_level | fixed", only="only without problem.exact")
     regular: bool = key(True, "false: u is not in W^{2,alpha+1}: every verdict is 'not covered'")

@@ -12,6 +12,7 @@ from . import reference
 CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
 NEEDS_CONTACT = tuple(m.key for m in names.MEASURES if m.contact)
 QUANTITIES = tuple(m.key for m in names.MEASURES if m.kind == "quantity")  # no rates: values, not errors
+REFERENCE_ERRORS = ("ref_err_L2", "ref_err_H1")  # ||u_ref(k-1) - u_ref(k)||: how exact each reference is
 
 
 def measures(cfg):
@@ -47,7 +48,7 @@ class Verifier:
             errors.update({k: v for k, v in found.items() if _wanted(k, wanted)})
         # a level that did not converge gets no reference solve and is no base for differences
         if self.reference is not None and converged:
-            errors.update(self._against_reference(level, u_h, wanted, has_contact))
+            errors.update(self._against_reference(level, domain, u_h, wanted, has_contact))
         if "diff" in wanted and self.previous is not None and converged:
             errors.update(reference.successive_differences(self.previous, u_h))
         quantities = self._quantities(level, domain, u_h, forms, wanted)
@@ -56,13 +57,14 @@ class Verifier:
         if "diff" in wanted and converged:  # kept for the successive differences only: a whole level's mesh
             self.previous = u_h
 
-    def _against_reference(self, level, u_h, wanted, has_contact):
-        u_ref, converged, seconds = self.reference.solution(self.reference.eps_for(level.eps), u_h)
+    def _against_reference(self, level, domain, u_h, wanted, has_contact):
+        found, converged, seconds = self.reference.measure(level.index, domain, u_h, level.eps,
+                                                           has_contact and _any_error(wanted))
         self.reference_time_s = seconds
-        found = self.reference.errors(u_h, u_ref, level.eps, has_contact and _any_error(wanted))
         if not converged:  # no error against a reference that is not one: the columns stay empty
             return {}
-        return {k: v for k, v in found.items() if k in ("L2_ref", "H1_ref") or _wanted(k[:-4], wanted)}
+        return {k: v for k, v in found.items()
+                if not k.endswith("_ref") or k in ("L2_ref", "H1_ref") or _wanted(k[:-4], wanted)}
 
     def _quantities(self, level, domain, u_h, forms, wanted):
         found = {}
@@ -92,6 +94,9 @@ class Verifier:
         for name in error_columns(self.cfg, wanted, has_contact, self.reference is not None):
             level.extra[name] = errors.get(name) if ok else None
             level.extra[f"rate_{name}"] = None
+        if self.reference is not None:  # the reference's own estimated error, beside the level's
+            for name in REFERENCE_ERRORS:
+                level.extra[name] = errors.get(name) if ok else None
         for name in (q for q in QUANTITIES if q in quantities):
             level.extra[name] = quantities[name] if ok else None
         if self.reference is not None:

@@ -54,13 +54,19 @@ def test_decide_classes(successive, proven, expected):
     assert found == expected and reason
 
 
-def test_decide_interval_is_the_drift_of_three_levels():
+def test_decide_interval_holds_fit_rates_and_their_limit():
     found = fit_of((1.98, 2.0))
-    # three levels: the residual is the drift itself (se = drift/sqrt(12), 2 se < drift)
-    assert found.half == pytest.approx(0.02) and found.se == pytest.approx(0.02 / math.sqrt(12))
-    assert found.lo == pytest.approx(1.97) and found.hi == pytest.approx(2.01)
-    assert verdict.decide(found, 1.6, 0.2)[1] == ("observed 1.99 ± 0.02 > proven 1.6: the bound is not sharp "
-                                                  "on this case")
+    # three levels: se = drift/sqrt(12); the rates head one more step on, to 2.02
+    assert found.se == pytest.approx(0.02 / math.sqrt(12)) and found.limit == pytest.approx(2.02)
+    assert found.lo == pytest.approx(1.99 - 2 * 0.02 / math.sqrt(12)) and found.hi == pytest.approx(2.02)
+    assert verdict.decide(found, 1.6, 0.2)[1] == ("observed 1.99 in [1.98, 2.02] > proven 1.6: the bound is not "
+                                                  "sharp on this case")
+
+
+def test_rates_settling_toward_the_proven_rate_agree():
+    # the demo's L2 (2-D, alpha = 2, eps = h, N = 64..256): rates 1.987, 1.995 still rising toward 2
+    found = fit_of((1.9866, 1.9948))
+    assert verdict.decide(found, 2.0, 0.2)[0] == verdict.AGREES
 
 
 def test_decide_reasons_name_the_cause():
@@ -197,3 +203,15 @@ def test_summary_csv_and_h5(make_config, tmp_path):
         assert h5["verification/norm/L2"].attrs["verdict"] == "agrees"
         assert h5["verification/norm/L2"].attrs["rate_lo"] == pytest.approx(2)
         assert h5["verification"].attrs["expectations_met"]
+
+
+def test_reference_depths_that_disagree_are_inconclusive(make_config):
+    data = {"problem": {"exact": None, "f": "10"}}
+    deep = [h**2 for h in H]
+    extra = {"L2_ref": deep, "rate_L2_ref": [None] * 4}
+    same = levels({"L2_ref": deep, "L2_ref_shallow": [0.75 * e for e in deep]}, extra)
+    assert verdict.summarize(make_config(**data), same).norms[0].verdict == verdict.AGREES
+    # one refinement shallower the last levels flatten (the reference's own error): another class
+    biased = levels({"L2_ref": deep, "L2_ref_shallow": [0.04, 0.01, 0.004, 0.003]}, extra)
+    (l2,) = verdict.summarize(make_config(**data), biased).norms
+    assert l2.verdict == verdict.INCONCLUSIVE and "the reference depth decides" in l2.reason

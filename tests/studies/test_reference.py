@@ -1,5 +1,6 @@
-"""Data-only scenes: errors against a reference solution are exact through the nested transfer, the
-reference is solved once per eps, and the whole scene is the same on 2 ranks as on one."""
+"""Data-only scenes: errors against a reference solution are exact through the nested transfer, each
+level has its reference at a fixed depth (and one shallower, with the reference's own error), and the
+whole scene is the same on 2 ranks as on one."""
 from pathlib import Path
 
 import pytest
@@ -32,8 +33,10 @@ def check_reference_errors_exact(make_config, comm):
     w = p1(coarse, lambda x: 2 + x[0] + x[1])
     v = p1(coarse, lambda x: 1 + x[0] ** 2)
     ref = reference.Reference(cfg, comm)
-    u_ref = transfer(w, fem.FunctionSpace(ref.mesh().mesh, ("Lagrange", 1)))
-    found = ref.errors(v, u_ref, 0.5, with_contact=True)
+    finer = reference.finer_domain(cfg, 0, coarse, 2, coarse)
+    assert finer.n == 16  # two refinements of N = 4
+    u_ref = transfer(w, fem.FunctionSpace(finer.mesh, ("Lagrange", 1)))
+    found = ref.errors(v, (finer, u_ref), 0.5, with_contact=True)
     direct = measure.difference_norms(v, w)
     ds_c = coarse.ds_c(measure.ERROR_DEGREE)
     direct.update(measure.contact_errors(v, w, 0.5, cfg.alpha, ds_c, direct["H1"]))
@@ -65,8 +68,11 @@ def test_data_only_scene_columns_and_cache(make_config):
     assert {"diff_L2", "rate_diff_H1", "penetration", "contact_measure", "contact_force", "energy"} <= set(extra)
     assert not {"L2", "H1"} & set(levels[0].errors)  # no exact solution, no exact-error columns
     assert levels[0].extra["diff_L2"] is None and extra["rate_diff_L2"] is not None
-    # constant eps: one reference solve (N = 32), reused by the later levels
-    assert levels[0].extra["reference_time_s"] > 0 and extra["reference_time_s"] == 0.0
+    # every level has its own reference (depth 2 by default) and the depth-1 check beside it
+    assert all(lv.extra["reference_time_s"] > 0 for lv in levels)
+    assert {"L2_ref_shallow", "H1_ref_shallow", "ref_err_L2", "ref_err_H1"} <= set(levels[0].errors)
+    # the depth-2 reference is closer to u than the depth-1 one: its own error is below the level's
+    assert all(lv.extra["ref_err_H1"] < lv.extra["H1_ref"] for lv in levels)
     # f = 10 pushes u > 0 into the whole contact face: penetration and the full face in contact
     assert extra["penetration"] > 0 and extra["contact_measure"] == pytest.approx(1.0)
 
