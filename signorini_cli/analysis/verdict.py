@@ -87,9 +87,9 @@ def notes(cfg):
     k = v.reference_refinements
     eps = ("each level's own eps" if v.reference_epsilon == "per_level"
            else "one eps, the law's on the finest reference mesh")
-    return (f"*_ref: each level's error against the same problem solved {k} uniform refinement"
-            f"{'s' if k > 1 else ''} finer than that level, at {eps}; ref_err_* is the reference's own "
-            f"estimated error (the level's error times 2^-rate*{k})",)
+    return (f"*_ref: each level's error against the same problem solved on its own mesh refined {k} time"
+            f"{'s' if k > 1 else ''}, at {eps}; ref_err_* = ||u_ref(k-1) - u_ref(k)||, the reference's own "
+            "error estimate" + ("; the verdict is checked at depth k - 1 too" if k > 1 else ""),)
 
 
 def rate_columns(levels):

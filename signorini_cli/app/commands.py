@@ -182,7 +182,10 @@ def _run_command(args):
             done = _prepare(cfg, args)
         except (ConfigError, yaml.YAMLError, OSError) as err:
             return fail(args.config, err)
-        return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+        try:
+            return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+        except ConfigError as err:  # a problem the first level refuses before solving (problems/posed.py)
+            return fail(args.config, err)
 
 
 def run(cfg, quiet=False, verbose=False, done=()):
