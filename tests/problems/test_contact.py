@@ -10,7 +10,9 @@ from mpi4py import MPI
 from scipy import integrate
 
 from signorini_cli import config, studies
-from signorini_cli.problems import contact
+from signorini_cli.meshing import meshes
+from signorini_cli.problems import contact, measure
+from signorini_cli.studies import refinement, verification
 from conftest import BASE, merge
 
 ALPHAS = (1.0, 1.5, 2.0, 3.0)
@@ -161,3 +163,35 @@ def test_two_ranks_match_one(changes):
         assert p.outcome.converged and s.outcome.converged
         for norm in ("L2", "H1"):  # tight solves: the two differ by round-off in the sums only
             assert p.errors[norm] == pytest.approx(s.errors[norm], rel=1e-10)
+
+
+@pytest.mark.parametrize("n", [64, 128])
+def test_data_term_with_a_zero_on_a_vertex_matches_mpmath(n):
+    # u = sin(2 pi x) on y = 0 has its zero x = 1/2 on a vertex, where numpy gives 1.2e-16, not 0: the
+    # segment ending there is kinked like (1/2 - x)^1.5 and needs the Gauss-Jacobi piece
+    alpha = 1.5
+    points = np.array([[[0.5 - 1 / n, 0, 0], [0.5, 0, 0]], [[0.5, 0, 0], [0.5 + 1 / n, 0, 0]]])
+    u_fn = contact.snap_zeros(lambda x: np.sin(2 * np.pi * x[..., 0]), points)
+    found = contact.data_on_segments(u_fn, alpha, points)
+    mpmath.mp.dps = 30
+    expected = np.array([[float(mpmath.quad(lambda t: psi(mpmath.sin(2 * mpmath.pi * (p[0][0] + t / n)), alpha)
+                                             * w(t), [0, 1]) / n) for w in (lambda t: 1 - t, lambda t: t)]
+                         for p in points])
+    assert np.abs(found - expected).max() <= 1e-12 * np.abs(expected).max()  # the bar: 1e-12
+
+
+def test_contact_force_is_the_exact_integral_of_u_h(make_config):
+    # a data-only level: its contact_force against the closed form ∫_0^1 [a + (b-a)t]_+^alpha dt =
+    # (b_+^{alpha+1} - a_+^{alpha+1}) / ((alpha+1)(b-a)) on every Γ_C segment of the same u_h
+    cfg = make_config(alpha=1.5, problem={"exact": None, "f": "40*x - 16"},
+                      mesh={"refinements": [16]}, verification={"reference_refinements": 0})
+    level = refinement.solve_level(cfg, 0, 16, MPI.COMM_SELF, verifier=verification.Verifier(cfg, MPI.COMM_SELF))
+    u_h = level.solution
+    tags = meshes.build(cfg.mesh, cfg.contact, 16, MPI.COMM_SELF).facet_tags  # the level's mesh, built again
+    dofs, points = measure.contact_facet_dofs(u_h.function_space, tags, meshes.CONTACT)
+    a, b = u_h.x.array[dofs].T
+    lengths = measure.facet_sizes(points)
+    closed = np.where(np.isclose(a, b), np.maximum(a, 0) ** 1.5,
+                      (np.maximum(b, 0) ** 2.5 - np.maximum(a, 0) ** 2.5) / (2.5 * (b - a + (a == b))))
+    assert (u_h.x.array[dofs] > 0).any() and (u_h.x.array[dofs] < 0).any()  # kinks inside facets
+    assert level.extra["contact_force"] == pytest.approx(np.sum(lengths * closed) / level.eps, rel=1e-10)
