@@ -56,16 +56,25 @@ def test_decide_classes(successive, proven, expected):
 
 def test_decide_interval_holds_fit_rates_and_their_limit():
     found = fit_of((1.98, 2.0))
-    # three levels: se = drift/sqrt(12); the rates head one more step on, to 2.02
-    assert found.se == pytest.approx(0.02 / math.sqrt(12)) and found.limit == pytest.approx(2.02)
-    assert found.lo == pytest.approx(1.99 - 2 * 0.02 / math.sqrt(12)) and found.hi == pytest.approx(2.02)
-    assert verdict.decide(found, 1.6, 0.2)[1] == ("observed 1.99 in [1.98, 2.02] > proven 1.6: the bound is not "
+    # three levels: se = drift/sqrt(12); one change known: rho = 2/3, the rates head 2 x 0.02 further on
+    assert found.se == pytest.approx(0.02 / math.sqrt(12)) and found.limit == pytest.approx(2.04)
+    assert found.lo == pytest.approx(1.99 - 2 * 0.02 / math.sqrt(12)) and found.hi == pytest.approx(2.04)
+    assert verdict.decide(found, 1.6, 0.2)[1] == ("observed 1.99 in [1.98, 2.04] > proven 1.6: the bound is not "
                                                   "sharp on this case")
+    # two changes known: rho = 0.01/0.04 from them, the rest of the way 0.01 rho/(1 - rho)
+    assert fit_of((1.94, 1.98, 1.99)).limit == pytest.approx(1.99 + 0.01 / 3)
+
+
+def test_settling_rates_below_the_proven_rate_are_below():
+    # the L-shape's H1_ref (corner singularity): 0.71, 0.66, 0.62, 0.59 heading to ~0.5, far from 1
+    assert verdict.decide(fit_of((0.71, 0.66, 0.62, 0.59)), 1.0, 0.2)[0] == verdict.BELOW
 
 
 def test_rates_settling_toward_the_proven_rate_agree():
-    # the demo's L2 (2-D, alpha = 2, eps = h, N = 64..256): rates 1.987, 1.995 still rising toward 2
-    found = fit_of((1.9866, 1.9948))
+    # the demo's L2 (2-D, alpha = 2, eps = h, N = 32..256): rates 1.972, 1.987, 1.995 still rising toward 2;
+    # and its first levels alone, N = 8..32: 1.91, 1.95
+    assert verdict.decide(fit_of((1.91, 1.95)), 2.0, 0.2)[0] == verdict.AGREES
+    found = fit_of((1.9724, 1.9866, 1.9948))
     assert verdict.decide(found, 2.0, 0.2)[0] == verdict.AGREES
 
 
