@@ -154,21 +154,20 @@ def _zero(expression):
 
 def decide(found, proven, widest, why=""):
     """(verdict, reason) of a fit (rates.Fit or None) against a proven rate (None: not covered, `why`
-    says which hypothesis fails); an interval wider than ± widest, or fewer than MIN_LEVELS fitted
-    levels, is inconclusive."""
+    says which hypothesis fails); fewer than MIN_LEVELS fitted levels, or an interval that holds the
+    proven rate but is wider than ± widest, is inconclusive (whole intervals above or below are not)."""
     if proven is None:
         return NOT_COVERED, why or "the paper proves no rate here"
     if found is None or len(found.levels) < MIN_LEVELS:
         fitted = 0 if found is None else len(found.levels)
         return INCONCLUSIVE, f"too few levels: {fitted} converged in the fit, {MIN_LEVELS} needed"
     shown = f"observed {found.slope:.2f} in [{found.lo:.2f}, {found.hi:.2f}]"
-    if found.half > widest:
-        if found.drifting:
-            moves = " -> ".join(f"{r:.2f}" for r in found.rates)
-            return INCONCLUSIVE, f"{shown}, wider than ± {widest:g}: rates still drifting ({moves})"
-        return INCONCLUSIVE, f"{shown}, wider than ± {widest:g}: the fit's residual"
     if found.lo - ROUND_OFF <= proven <= found.hi + ROUND_OFF:
-        return AGREES, f"{shown} contains proven {proven:.3g}"
+        if found.half <= widest:
+            return AGREES, f"{shown} contains proven {proven:.3g}"
+        why = (f"rates still drifting ({' -> '.join(f'{r:.2f}' for r in found.rates)})" if found.drifting
+               else "the fit's residual")
+        return INCONCLUSIVE, f"{shown} contains proven {proven:.3g} but is wider than ± {widest:g}: {why}"
     if found.lo > proven:
         return EXCEEDS, f"{shown} > proven {proven:.3g}: the bound is not sharp on this case"
     return BELOW, f"{shown} < proven {proven:.3g}: below the bound (a finding, or a hypothesis fails)"
@@ -237,7 +236,7 @@ def format_summary(summary):
     if summary.outside_theory:
         lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
     lines.append(f"verification: rates fitted over the last {summary.fit_levels} levels; interval: the fit ± 2 "
-                 f"standard errors, the successive rates and where they head; inconclusive beyond ± {summary.tolerance:g}")
+                 f"standard errors, the successive rates and where they head; agrees only within ± {summary.tolerance:g}")
     lines += [f"  {note}" for note in summary.notes]
     rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
     for v in summary.norms:
@@ -270,6 +269,17 @@ def markdown_lines(summary):
         lines.append(f"| {v.norm} | {_rate(v.observed)} | {interval(v)} | {proven} | {v.verdict} | "
                      f"{v.reason.replace('|', '/')} |")
     return lines
+
+
+def latex_lines(summary):
+    """The verdicts under a LaTeX rate table: a tabular of norm, observed rate, interval, proven, verdict."""
+    lines = ["", r"\begin{tabular}{lrrrl}", r"\hline", r"norm & observed & interval & proven & verdict \\",
+             r"\hline"]
+    for v in summary.norms:
+        proven = "--" if v.proven is None else f"{v.proven:g}"
+        lines.append(rf"\texttt{{{v.norm.replace('_', chr(92) + '_')}}} & {_rate(v.observed)} & {interval(v)} & "
+                     rf"{proven} & {v.verdict} \\")
+    return lines + [r"\hline", r"\end{tabular}"]
 
 
 def _quantity_row(q):

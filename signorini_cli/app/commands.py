@@ -229,7 +229,7 @@ def _outputs(cfg, result, summary):
         return tables.limit_summary(cfg, named, tables.write_limit(cfg, result, named))
     rows = results.table(result)
     written = tables.write(tables.Study(cfg.study, cfg.output_dir, rows), cfg, cfg.output.digits,
-                           plots=cfg.output.plots)
+                           plots=cfg.output.plots, summary=summary)
     header = f"study {cfg.study}: {cfg.output_dir} (contact term: contact_quadrature {cfg.contact_quadrature})"
     return "\n".join([header, tables.format_table(rows, cfg),
                       verdict.format_summary(summary), "wrote " + ", ".join(path.name for path in written)])

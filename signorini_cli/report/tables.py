@@ -15,6 +15,7 @@ from . import plots as plotting  # its matplotlib import waits inside its functi
 
 COLUMN_SETS = ("paper", "all")  # output.columns / report --columns, besides a list of columns
 PAPER_LEADING = ("N", "h", "epsilon", "newton_its")  # what a paper shows before the errors
+ALWAYS = ("L2", "H1", "L2_ref", "H1_ref")  # in the paper columns whether the paper bounds them or not
 TERMINAL_WIDTH = 120
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
@@ -62,10 +63,10 @@ def choose(rows, columns="paper", proven=None):
 
 
 def paper_norms(measured, proven):
-    """The measured norms with a proven rate, pos_gc_scaled left out beside pos_gc (a power of it,
-    Corollary 3.2 ii); with no proven rate known, the first two measured (L2, H1)."""
-    shown = [n for n in measured if n in proven and not (n == "pos_gc_scaled" and "pos_gc" in proven)]
-    return shown or measured[:2]
+    """L2 and H1 (or their _ref forms), proven rate or not, and the measured norms with a proven rate,
+    pos_gc_scaled left out beside pos_gc (a power of it, Corollary 3.2 ii); else the first two measured."""
+    shown = {n for n in measured if n in proven and not (n == "pos_gc_scaled" and "pos_gc" in proven)}
+    return [n for n in measured if n in shown or n in ALWAYS] or measured[:2]
 
 
 def h_per_N(rows):
@@ -375,16 +376,20 @@ def _csv_value(text):
 
 # --- everything a study leaves besides rates.csv and study.h5 -----------------------------------
 
-def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None):
+def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None, summary=None):
     """rates.md, rates.tex and (if `plots`) the figures of `study` into `folder`; the paths written.
-    `columns` as output.columns (default: the config's, else "paper"); `figure`: plots.Layout options."""
+    `columns` as output.columns (default: the config's, else "paper"); `figure`: plots.Layout options;
+    `summary` (verdict.Summary): its verdicts under the tables."""
     folder = Path(folder or study.folder)
     folder.mkdir(parents=True, exist_ok=True)
     caption = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
     chosen, proven = _columns_of(cfg, columns), proven_rates(cfg)
     written = [folder / "rates.md", folder / "rates.tex"]
-    written[0].write_text(f"<!-- {caption} -->\n" + markdown_table(study.rows, digits, chosen, proven))
-    written[1].write_text(latex_table(study.rows, digits, caption, chosen, proven))
+    verdicts = ([], []) if summary is None else (verdict.markdown_lines(summary), verdict.latex_lines(summary))
+    written[0].write_text("\n".join([f"<!-- {caption} -->\n" + markdown_table(study.rows, digits, chosen, proven)
+                                     .rstrip("\n")] + verdicts[0]) + "\n")
+    written[1].write_text("\n".join([latex_table(study.rows, digits, caption, chosen, proven).rstrip("\n")]
+                                    + verdicts[1]) + "\n")
     if plots and study.rows:
         fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
         figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))

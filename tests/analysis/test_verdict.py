@@ -81,6 +81,8 @@ def test_rates_settling_toward_the_proven_rate_agree():
 def test_decide_reasons_name_the_cause():
     assert "too few levels: 2" in verdict.decide(fit_of((2.0,)), 2.0, 0.2)[1]
     assert "rates still drifting (0.60 -> 0.98)" in verdict.decide(fit_of((0.60, 0.98)), 1.0, 0.2)[1]
+    # a wide interval wholly above the proven rate still exceeds it (the demo's pos_gc on N = 8..32)
+    assert verdict.decide(fit_of((2.45, 2.30)), 1.0, 0.2)[0] == verdict.EXCEEDS
     assert verdict.decide(fit_of((2.0, 2.0)), None, 0.2, "α = 4 > 3, condition (5)")[1] == "α = 4 > 3, condition (5)"
 
 
