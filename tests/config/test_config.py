@@ -155,7 +155,7 @@ def test_outside_theory_lifts_condition_5():
 def test_verification_defaults_and_expect():
     cfg = load({"expect": {"rates": {"L2": 2, "H1": 1.0}}})
     assert cfg.verification == config.Verification(fit_levels=3, tolerance=0.2, measures=None,
-                                                   reference_refinements=1, reference_epsilon="per_level")
+                                                   reference_refinements=2, reference_epsilon="per_level")
     assert dict(cfg.expect.rates) == {"L2": 2.0, "H1": 1.0} and cfg.expect.tolerance == 0.1
     assert load({}).expect is None
     data = load({"problem": {"exact": None, "f": "10"}, "expect": {"rates": {"L2_ref": 2}},
@@ -178,8 +178,8 @@ DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
                  id="measure-twice"),
     pytest.param({"verification": {"reference_epsilon": "fixed"}},
                  "verification.reference_epsilon: only meaningful without problem.exact", id="ref-eps-exact"),
-    pytest.param(dict(DATA_ONLY, verification={"reference_refinements": 3}),
-                 "verification.reference_refinements: must be <= 2, got 3", id="ref-refinements"),
+    pytest.param(dict(DATA_ONLY, verification={"reference_refinements": 4}),
+                 "verification.reference_refinements: must be <= 3, got 4", id="ref-refinements"),
     pytest.param(dict(DATA_ONLY, verification={"reference_epsilon": "each"}),
                  "verification.reference_epsilon: 'each' is not one of per_level, fixed", id="ref-eps"),
     pytest.param({"verification": {"fit_level": 3}}, "verification.fit_level: unknown key in verification "
