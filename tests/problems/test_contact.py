@@ -10,9 +10,7 @@ from mpi4py import MPI
 from scipy import integrate
 
 from signorini_cli import config, studies
-from signorini_cli.meshing import meshes
-from signorini_cli.problems import contact, measure
-from signorini_cli.studies import refinement, verification
+from signorini_cli.problems import contact
 from conftest import BASE, merge
 
 ALPHAS = (1.0, 1.5, 2.0, 3.0)
@@ -178,20 +176,3 @@ def test_data_term_with_a_zero_on_a_vertex_matches_mpmath(n):
                                              * w(t), [0, 1]) / n) for w in (lambda t: 1 - t, lambda t: t)]
                          for p in points])
     assert np.abs(found - expected).max() <= 1e-12 * np.abs(expected).max()  # the bar: 1e-12
-
-
-def test_contact_force_is_the_exact_integral_of_u_h(make_config):
-    # a data-only level: its contact_force against the closed form ∫_0^1 [a + (b-a)t]_+^alpha dt =
-    # (b_+^{alpha+1} - a_+^{alpha+1}) / ((alpha+1)(b-a)) on every Γ_C segment of the same u_h
-    cfg = make_config(alpha=1.5, problem={"exact": None, "f": "40*x - 16"},
-                      mesh={"refinements": [16]}, verification={"reference_refinements": 0})
-    level = refinement.solve_level(cfg, 0, 16, MPI.COMM_SELF, verifier=verification.Verifier(cfg, MPI.COMM_SELF))
-    u_h = level.solution
-    tags = meshes.build(cfg.mesh, cfg.contact, 16, MPI.COMM_SELF).facet_tags  # the level's mesh, built again
-    dofs, points = measure.contact_facet_dofs(u_h.function_space, tags, meshes.CONTACT)
-    a, b = u_h.x.array[dofs].T
-    lengths = measure.facet_sizes(points)
-    closed = np.where(np.isclose(a, b), np.maximum(a, 0) ** 1.5,
-                      (np.maximum(b, 0) ** 2.5 - np.maximum(a, 0) ** 2.5) / (2.5 * (b - a + (a == b))))
-    assert (u_h.x.array[dofs] > 0).any() and (u_h.x.array[dofs] < 0).any()  # kinks inside facets
-    assert level.extra["contact_force"] == pytest.approx(np.sum(lengths * closed) / level.eps, rel=1e-10)

@@ -4,6 +4,7 @@ whole scene is the same on 2 ranks as on one."""
 from pathlib import Path
 
 import pytest
+import yaml
 from mpi4py import MPI
 
 from dolfinx import fem
@@ -13,6 +14,7 @@ from signorini_cli.problems import measure
 from signorini_cli.solve.transfer import transfer
 from signorini_cli.analysis import verdict
 from signorini_cli.studies import reference, stability
+from conftest import BASE, merge
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
@@ -58,6 +60,27 @@ def test_reference_errors_exact_serial(make_config):
 def test_reference_errors_exact_two_ranks(make_config):
     assert MPI.COMM_WORLD.size == 2
     check_reference_errors_exact(make_config, MPI.COMM_WORLD)
+
+
+@pytest.mark.parametrize("mesh", [
+    pytest.param({"sizes": [0.3], "refine": "uniform", "refinements": [0, 1]}, id="nested-family"),
+    pytest.param({"sizes": [0.3, 0.2]}, id="meshed-one-by-one"),
+])
+def test_finer_domain_refines_the_level(tmp_path, mesh):
+    raw = merge(BASE, {"contact": "contact", "dimension": None, "problem": DATA_ONLY["problem"]})
+    raw["mesh"] = dict({"kind": "gmsh", "geometry": "half_disk", "cache": str(tmp_path)}, **mesh)
+    cfg = config.loads(yaml.safe_dump(raw))
+    level = meshes.build(cfg.mesh, cfg.contact, cfg.mesh.levels[0])
+    once = reference.finer_domain(cfg, 0, level, 1, level)
+    twice = reference.finer_domain(cfg, 0, level, 2, once)
+    assert (once.n, twice.n) == (4 * level.n, 16 * level.n)  # 2-D: every cell split in four per refinement
+    # nested: the refined boundary stays on the level's polygon, so Γ_C keeps its measure
+    assert gamma_c(twice) == pytest.approx(gamma_c(level), rel=1e-12)
+
+
+def gamma_c(domain):
+    form = fem.form(fem.Constant(domain.mesh, 1.0) * domain.ds_c(1))
+    return domain.mesh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
 
 
 def test_data_only_scene_columns_and_cache(make_config):
