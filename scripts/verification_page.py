@@ -48,6 +48,8 @@ def page(cases):
              "(`verification.fit_levels`, default 3), h the largest cell diameter. Its **interval** is derived "
              "from the data: it holds the fit ± 2 standard errors of the regression slope (about 95 % for "
              "normal residuals; with 3 levels the residual is the spread of the two successive rates itself), "
+             "at least ± 0.02 (errors whose constant drifts by 3 % over three levels move their slope by "
+             "ln(1.03)/ln 4 = 0.02; the demo's L2 constant e/h² drifts by 2.8 % over N = 32..128), "
              "every successive rate between the fitted levels, and the limit they head to: the last rate plus "
              "ρ/(1 − ρ) times its last change, ρ the ratio of the last two changes over all levels (2/3 when "
              "only one change is known, at most 3/4). Rates r(h) = p + c h^q + … change by ρ = 2^-q per halving "

@@ -58,8 +58,9 @@ def test_decide_interval_holds_fit_rates_and_their_limit():
     found = fit_of((1.98, 2.0))
     # three levels: se = drift/sqrt(12); one change known: rho = 2/3, the rates head 2 x 0.02 further on
     assert found.se == pytest.approx(0.02 / math.sqrt(12)) and found.limit == pytest.approx(2.04)
-    assert found.lo == pytest.approx(1.99 - 2 * 0.02 / math.sqrt(12)) and found.hi == pytest.approx(2.04)
-    assert verdict.decide(found, 1.6, 0.2)[1] == ("observed 1.99 in [1.98, 2.04] > proven 1.6: the bound is not "
+    # 2 se = 0.012 is below the narrowest half-width, 0.02
+    assert found.lo == pytest.approx(1.99 - rates.MIN_HALF) and found.hi == pytest.approx(2.04)
+    assert verdict.decide(found, 1.6, 0.2)[1] == ("observed 1.99 in [1.97, 2.04] > proven 1.6: the bound is not "
                                                   "sharp on this case")
     # two changes known: rho = 0.01/0.04 from them, the rest of the way 0.01 rho/(1 - rho)
     assert fit_of((1.94, 1.98, 1.99)).limit == pytest.approx(1.99 + 0.01 / 3)
@@ -102,7 +103,7 @@ def test_summarize_fits_and_judges(make_config):
     assert by_norm["L2"].observed == pytest.approx(2) and by_norm["L2"].verdict == verdict.AGREES
     assert by_norm["H1"].observed == pytest.approx(0.8) and by_norm["H1"].verdict == verdict.BELOW
     assert by_norm["L2"].levels == (10, 20, 40)  # the last fit_levels = 3 levels
-    assert by_norm["L2"].lo == pytest.approx(2) and by_norm["L2"].hi == pytest.approx(2)
+    assert by_norm["L2"].lo == pytest.approx(2 - rates.MIN_HALF) and by_norm["L2"].hi == pytest.approx(2 + rates.MIN_HALF)
 
 
 def test_3d_alpha2_rate_2_exceeds_8_5(make_config):
@@ -212,7 +213,7 @@ def test_summary_csv_and_h5(make_config, tmp_path):
         verdict.write_h5(h5.create_group("verification"), summary)
     with h5py.File(tmp_path / "s.h5") as h5:
         assert h5["verification/norm/L2"].attrs["verdict"] == "agrees"
-        assert h5["verification/norm/L2"].attrs["rate_lo"] == pytest.approx(2)
+        assert h5["verification/norm/L2"].attrs["rate_lo"] == pytest.approx(2 - rates.MIN_HALF)
         assert h5["verification"].attrs["expectations_met"]
 
 
