@@ -14,7 +14,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN := mpirun -n $(NP)
 CONFIG ?= configs/demo.yaml
 CONFIGS := $(shell find configs -name '*.yaml' | sort)
-PAPER_CONFIGS := $(sort $(wildcard configs/paper/*.yaml))
+PAPER_CONFIGS := $(sort $(wildcard configs/paper/*.yaml)) configs/gmsh/l-shape-corner.yaml  # and the corner solution
 PAPER_RESULTS := results/paper
 
 .PHONY: setup demo test test-serial test-mpi test-fast run studies verify meshes geometries clean

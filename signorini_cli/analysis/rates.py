@@ -36,16 +36,89 @@ def error_columns(rows):
 def fitted(h, errors, valid, k=3, log_factor=False):
     """Least-squares slope of log e against log h over the last k usable levels (None if fewer than 2).
     With log_factor the fit is of e/|ln h|: the slope that should reach p when e = O(h^p |ln h|)."""
+    found = fit(h, errors, valid, k, log_factor)  # |ln h| vanishes at h = 1: such levels are left out
+    return None if found is None else found.slope
+
+
+# rates r(h) = p + c h^q + ... change by rho = 2^-q per halving of h: q = 1 gives 1/2, the demo's L2 shows
+# 0.58-0.61; with one change known rho is taken as 2/3 (the rest of the way twice the last change)
+RHO_UNKNOWN, RHO_MAX = 2 / 3, 3 / 4
+# the narrowest interval: errors whose constant drifts by 3 % over three levels (h / 4) move their fitted slope
+# by ln(1.03)/ln(4) = 0.02, a change no pre-asymptotic study rules out (the demo's L2 constant e/h^2 drifts
+# by 2.8 % over N = 32..128)
+MIN_HALF = 0.02
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted slope with its uncertainty: `se` the regression's standard error (None with 2 levels),
+    `rates` the successive rates between the fitted levels. The interval [lo, hi] holds slope ± 2 se
+    (~95 % for normal residuals, at least ± MIN_HALF), every successive rate of the fit and `limit`, where
+    the rates head."""
+    slope: float
+    se: float
+    rates: tuple
+    levels: tuple  # indices of the fitted levels
+    history: tuple = ()  # the successive rates of every usable level up to the last fitted one
+
+    @property
+    def drift(self):
+        """How far the successive rates inside the fit move: the rate is not settled by this much."""
+        return max(self.rates) - min(self.rates) if self.rates else 0.0
+
+    @property
+    def limit(self):
+        """Where the rates head: the last rate plus the rest of a geometric approach, rho/(1 - rho) times
+        its last change, rho the ratio of the last two changes over all usable levels (RHO_UNKNOWN with
+        fewer, at most RHO_MAX: rates that settle slower are called drifting by the interval's width)."""
+        if len(self.history) < 2:
+            return self.rates[-1]
+        step = self.history[-1] - self.history[-2]
+        rho = RHO_UNKNOWN
+        if len(self.history) > 2 and step * (self.history[-2] - self.history[-3]) > 0:
+            rho = min(step / (self.history[-2] - self.history[-3]), RHO_MAX)
+        return self.history[-1] + step * rho / (1 - rho)
+
+    @property
+    def lo(self):
+        return min(self.slope - max(2 * (self.se or 0.0), MIN_HALF), self.limit, *self.rates)
+
+    @property
+    def hi(self):
+        return max(self.slope + max(2 * (self.se or 0.0), MIN_HALF), self.limit, *self.rates)
+
+    @property
+    def half(self):
+        """Half the interval's width."""
+        return (self.hi - self.lo) / 2
+
+    @property
+    def drifting(self):
+        """Whether the moving rates, not the fit's residual, make the interval this wide."""
+        return max(self.limit, *self.rates) - min(self.limit, *self.rates) >= 4 * (self.se or 0.0)
+
+
+def fit(h, errors, valid, k=3, log_factor=False):
+    """The least-squares slope of `fitted` with its standard error and the successive rates of the
+    same levels (None if fewer than 2 usable levels)."""
     last = usable(errors, valid)[-k:]
     if log_factor:
-        last = [i for i in last if h[i] < 1]  # |ln h| vanishes at h = 1
+        last = [i for i in last if h[i] < 1]
     if len(last) < 2 or len({h[i] for i in last}) < 2:
         return None
     log_h = np.log([h[i] for i in last])
-    log_e = np.log([errors[i] for i in last])
-    if log_factor:
-        log_e = log_e - np.log(-log_h)
-    return float(np.polyfit(log_h, log_e, 1)[0])
+    log_e = np.log([errors[i] for i in last]) - (np.log(-log_h) if log_factor else 0.0)
+    (slope, intercept), se = np.polyfit(log_h, log_e, 1), None
+    if len(last) > 2:
+        residual = log_e - (slope * log_h + intercept)
+        sxx = float(np.sum((log_h - log_h.mean()) ** 2))
+        se = math.sqrt(float(np.sum(residual**2)) / (len(last) - 2) / sxx)
+    steps = np.diff(log_e) / np.diff(log_h)
+    every = [i for i in usable(errors, valid) if i <= last[-1] and (not log_factor or h[i] < 1)]
+    log_h_all = np.log([h[i] for i in every])
+    log_e_all = np.log([errors[i] for i in every]) - (np.log(-log_h_all) if log_factor else 0.0)
+    history = np.diff(log_e_all) / np.diff(log_h_all)
+    return Fit(float(slope), se, tuple(float(r) for r in steps), tuple(last), tuple(float(r) for r in history))
 
 
 # --- the paper's proven rates ----------------------------------------------------------------------
@@ -126,7 +199,8 @@ def base_norm(norm):
 def expected(dimension, alpha, p, norm):
     """The best rate PAPER_RATES proves for ‖·‖ = norm when d = dimension, alpha, eps = theta h^p."""
     if not alpha_admissible(dimension, alpha):
-        return Expected(None, reason="alpha outside the paper's condition (5)")
+        bound = f"α = {alpha:g} > 3" if dimension == 3 and alpha > 3 else f"α = {alpha:g} < 1"
+        return Expected(None, reason=f"{bound}, condition (5)")
     norm = base_norm(norm)
     records = [r for r in PAPER_RATES if dimension in r.dimensions and r.norm == norm
                and ALPHA_CONDITIONS[r.alpha](alpha)]

@@ -1,19 +1,23 @@
 """A study's verdict against the paper: per norm the fitted rate, the proven rate and whether they agree;
 per scalar quantity the observed order, Richardson extrapolation and GCI; the user's `expect:` block."""
+import math
 from dataclasses import asdict, dataclass
 
-from ..config import MESH_KINDS
+from ..config import expressions
 from . import rates
 
-AGREES, BELOW, NOT_COVERED, NO_RATE = "agrees", "below theory", "not covered", "no rate"
-ROUND_OFF = 1e-12  # an observed rate equal to proven - tolerance agrees, whatever the last bit says
+AGREES, EXCEEDS, BELOW, INCONCLUSIVE, NOT_COVERED = "agrees", "exceeds", "below", "inconclusive", "not covered"
+ROUND_OFF = 1e-12  # a proven rate on the interval's edge is inside it, whatever the last bit says
+MIN_LEVELS = 3  # two levels give a slope but no residual: nothing says how settled it is
 GCI_QUANTITIES = ("contact_force", "penetration", "energy")  # data-only scenes: what a user quotes
+RANGES = {"contact_force": (0.0, math.inf), "penetration": (0.0, math.inf), "energy": (-math.inf, math.inf)}
 
 
 @dataclass(frozen=True)
 class NormVerdict:
-    """One rate column: fitted rate over the last levels (of e/|ln h| when the proven rate carries
-    |ln h|; `plain` is the fit of e itself), the proven rate and the verdict."""
+    """One rate column: the rate fitted over the last levels (of e/|ln h| when the proven rate carries
+    |ln h|; `plain` is the fit of e itself) with its interval [lo, hi], the proven rate, the verdict
+    and its one-line reason."""
     norm: str
     observed: float
     plain: float
@@ -23,14 +27,19 @@ class NormVerdict:
     reference: str
     conditions: str
     levels: tuple  # N of the fitted levels
+    lo: float = None
+    hi: float = None
+    reason: str = ""
 
 
 @dataclass(frozen=True)
 class QuantityEstimate:
-    """A scalar quantity of interest on the finest level with its GCI error band."""
+    """A scalar quantity of interest on the finest level with its GCI error band (estimate None:
+    `reason` says why there is none)."""
     quantity: str
     levels: tuple
-    estimate: rates.GridConvergence  # None: no order observable (e.g. a constant quantity)
+    estimate: rates.GridConvergence
+    reason: str = ""
 
 
 @dataclass(frozen=True)
@@ -50,6 +59,7 @@ class Summary:
     fit_levels: int
     tolerance: float
     notes: tuple = ()
+    outside_theory: bool = False
 
     @property
     def met(self):
@@ -60,13 +70,13 @@ class Summary:
 def summarize(cfg, levels):
     """The verdict of a (possibly partial) study; the same on every rank (built from reduced values)."""
     norms = tuple(norm_verdict(cfg, levels, norm) for norm in rate_columns(levels))
-    quantities = tuple(q for q in (quantity_estimate(levels, name) for name in GCI_QUANTITIES
+    quantities = tuple(q for q in (quantity_estimate(cfg, levels, name) for name in GCI_QUANTITIES
                                    if cfg.problem.exact is None) if q is not None)
     fitted = {v.norm: v.observed for v in norms}
     expectations = tuple(expectation(norm, rate, cfg.expect.tolerance, fitted.get(norm))
                          for norm, rate in (cfg.expect.rates if cfg.expect else ()))
     return Summary(norms, quantities, expectations, cfg.verification.fit_levels, cfg.verification.tolerance,
-                   notes(cfg))
+                   notes(cfg), cfg.outside_theory)
 
 
 def notes(cfg):
@@ -74,14 +84,12 @@ def notes(cfg):
     v = cfg.verification
     if cfg.problem.exact is not None or v.reference_refinements == 0:
         return ()
-    if cfg.mesh.kind in MESH_KINDS:
-        where = f"at N={cfg.mesh.refinements[-1] * 2 ** v.reference_refinements}"
-    else:  # gmsh/file meshes: N counts cells, known once the finest level is built
-        where = f"on {2 ** (cfg.dimension * v.reference_refinements)} times the finest level's cells"
+    k = v.reference_refinements
     eps = ("each level's own eps" if v.reference_epsilon == "per_level"
-           else "one eps, the law's on the reference mesh")
-    return (f"*_ref: errors against a reference solution {where} ({v.reference_refinements} uniform "
-            f"refinement{'s' if v.reference_refinements > 1 else ''} of the finest level), solved at {eps}",)
+           else "one eps, the law's on the finest reference mesh")
+    return (f"*_ref: each level's error against the same problem solved on its own mesh refined {k} time"
+            f"{'s' if k > 1 else ''}, at {eps}; ref_err_* = ||u_ref(k-1) - u_ref(k)||, the reference's own "
+            "error estimate" + ("; the verdict is checked at depth k - 1 too" if k > 1 else ""),)
 
 
 def rate_columns(levels):
@@ -97,20 +105,27 @@ def errors_of(levels, norm):
 
 
 def norm_verdict(cfg, levels, norm):
-    """Fit the last k levels of `norm` and compare with the paper's rate for this study."""
+    """Fit the last k levels of `norm` and compare its interval with the paper's rate for this study."""
     h, ok = [lv.h for lv in levels], [lv.outcome.converged for lv in levels]
     e, k = errors_of(levels, norm), cfg.verification.fit_levels
     proven = expected(cfg, norm)
-    plain = rates.fitted(h, e, ok, k)
-    observed = rates.fitted(h, e, ok, k, log_factor=True) if proven.log_factor else plain
-    used = tuple(levels[i].n for i in rates.usable(e, ok)[-k:])
-    return NormVerdict(norm, observed, plain, proven.rate, proven.log_factor,
-                       decide(observed, proven.rate, cfg.verification.tolerance),
-                       proven.reference, proven.conditions or proven.reason, used)
+    plain = rates.fit(h, e, ok, k)
+    found = rates.fit(h, e, ok, k, log_factor=True) if proven.log_factor else plain
+    used = tuple(levels[i].n for i in found.levels) if found else ()
+    verdict, reason = decide(found, proven.rate, cfg.verification.tolerance,
+                             proven.reason or proven.conditions)
+    if verdict in (AGREES, EXCEEDS, BELOW):
+        verdict, reason = shallower(cfg, levels, norm, proven, found, verdict, reason)
+    if verdict in (AGREES, EXCEEDS, BELOW):
+        reason += caveat(cfg, levels, found)
+    return NormVerdict(norm, found and found.slope, plain and plain.slope, proven.rate, proven.log_factor,
+                       verdict, proven.reference, proven.conditions or proven.reason, used,
+                       found and found.lo, found and found.hi, reason)
 
 
 def expected(cfg, norm):
-    """The proven rate a column is checked against; columns comparing different problems are not covered."""
+    """The proven rate a column is checked against; columns comparing different problems, and
+    problems outside the paper's hypotheses, are not covered (the reason says which hypothesis fails)."""
     if cfg.problem.exact_solves == "signorini":  # docs/limit.md; a Signorini study's exact solution is one
         return rates.Expected(None, reason="errors against the Signorini solution u_S: the paper bounds "
                                            "u_eps - u_eps,h only (total-error heuristics: docs/limit.md)")
@@ -118,6 +133,11 @@ def expected(cfg, norm):
         return rates.Expected(None, reason="the paper's rates assume u in W^{2,alpha+1}; this scene's solution "
                                            "is singular (verification.regular: false, Remark 3.4)")
     p = cfg.epsilon.p
+    g = cfg.problem.g
+    if g is not None and p != 0 and "eps" not in g.names and not _zero(g):
+        return rates.Expected(None, reason=f"g = {g.text} does not scale with eps = {cfg.epsilon.formula()} "
+                                           "-> 0: the flux g/eps on Γ_C grows without bound, so u_eps has no "
+                                           "h-independent W^{2,alpha+1} bound (Cor. 3.2 assumes one)")
     if norm.startswith("diff_") and p != 0:
         return rates.Expected(None, reason="successive levels have different eps, so their difference "
                                            "contains u_eps(h) - u_eps(h/2): no discretisation rate applies")
@@ -127,24 +147,80 @@ def expected(cfg, norm):
     return rates.expected(cfg.dimension, cfg.alpha, p, norm)
 
 
-def decide(observed, proven, tolerance):
-    """agrees (observed >= proven - tolerance), below theory, not covered (no proven rate), no rate."""
+def _zero(expression):
+    """g = 0 written as a constant (no variables): the Signorini data, no flux."""
+    return not (expression.names - set(expressions.CONSTANTS)) and expression({}, expressions.math_functions()) == 0
+
+
+def decide(found, proven, widest, why=""):
+    """(verdict, reason) of a fit (rates.Fit or None) against a proven rate (None: not covered, `why`
+    says which hypothesis fails); fewer than MIN_LEVELS fitted levels, or an interval that holds the
+    proven rate but is wider than ± widest, is inconclusive (whole intervals above or below are not)."""
     if proven is None:
-        return NOT_COVERED
-    if observed is None:
-        return NO_RATE
-    return AGREES if observed >= proven - tolerance - ROUND_OFF else BELOW
+        return NOT_COVERED, why or "the paper proves no rate here"
+    if found is None or len(found.levels) < MIN_LEVELS:
+        fitted = 0 if found is None else len(found.levels)
+        return INCONCLUSIVE, f"too few levels: {fitted} converged in the fit, {MIN_LEVELS} needed"
+    shown = f"observed {found.slope:.2f} in [{found.lo:.2f}, {found.hi:.2f}]"
+    if found.lo - ROUND_OFF <= proven <= found.hi + ROUND_OFF:
+        if found.half <= widest:
+            return AGREES, f"{shown} contains proven {proven:.3g}"
+        why = (f"rates still drifting ({' -> '.join(f'{r:.2f}' for r in found.rates)})" if found.drifting
+               else "the fit's residual")
+        return INCONCLUSIVE, f"{shown} contains proven {proven:.3g} but is wider than ± {widest:g}: {why}"
+    if found.lo > proven:
+        return EXCEEDS, f"{shown} > proven {proven:.3g}: the bound is not sharp on this case"
+    return BELOW, f"{shown} < proven {proven:.3g}: below the bound (a finding, or a hypothesis fails)"
 
 
-def quantity_estimate(levels, name):
-    """GCI of a quantity from the three finest converged levels where it was measured."""
-    found = [(lv.h, lv.extra[name], lv.n) for lv in levels
-             if lv.outcome.converged and lv.extra.get(name) is not None]
+def shallower(cfg, levels, norm, proven, deep, verdict, reason):
+    """A reference-error verdict checked one reference depth shallower (errors `<norm>_shallow`, measured
+    when reference_refinements >= 2): the class must not depend on the depth, else it is inconclusive."""
+    shallow = [lv.errors.get(f"{norm}_shallow") for lv in levels]
+    if not norm.endswith("_ref") or not any(shallow):
+        return verdict, reason
+    found = rates.fit([lv.h for lv in levels], shallow, [lv.outcome.converged for lv in levels],
+                      cfg.verification.fit_levels, proven.log_factor)
+    other, _ = decide(found, proven.rate, cfg.verification.tolerance)
+    if other == verdict:
+        return verdict, reason
+    k = cfg.verification.reference_refinements
+    return INCONCLUSIVE, (f"references {k} refinements finer: {deep.slope:.2f} ({verdict}), {k - 1} finer: "
+                          f"{_rate(found and found.slope)} ({other}): the reference depth decides")
+
+
+def caveat(cfg, levels, found):
+    """A constant eps satisfies 'eps >~ h' only once h <~ eps: say so, and whether the fitted levels are there."""
+    if cfg.epsilon.p != 0:
+        return ""
+    finest = levels[found.levels[-1]]
+    where = "reached" if finest.h <= finest.eps else "not reached"
+    return f"; eps constant: the bound holds only once h <~ eps ({where} here: h/eps = {finest.h / finest.eps:.2g})"
+
+
+def quantity_estimate(cfg, levels, name):
+    """GCI of a quantity from the three finest converged levels where it was measured: only when every
+    level solves one continuous problem (constant eps, fixed data), and never an extrapolated value
+    outside the quantity's range."""
     if not any(name in lv.extra for lv in levels):
         return None
+    found = [(lv.h, lv.extra[name], lv.n) for lv in levels
+             if lv.outcome.converged and lv.extra.get(name) is not None]
     last = found[-3:]
-    estimate = rates.grid_convergence([x[0] for x in last], [x[1] for x in last]) if len(last) == 3 else None
-    return QuantityEstimate(name, tuple(x[2] for x in last), estimate)
+    ns = tuple(x[2] for x in last)
+    if cfg.epsilon.p != 0:
+        return QuantityEstimate(name, ns, None, f"eps = {cfg.epsilon.formula()} changes with h: each level "
+                                                "solves another continuous problem, no limit to extrapolate to")
+    if len(last) < 3:
+        return QuantityEstimate(name, ns, None, "needs three converged levels")
+    estimate = rates.grid_convergence([x[0] for x in last], [x[1] for x in last])
+    if estimate is None:
+        return QuantityEstimate(name, ns, None, "no order observable")
+    low, high = RANGES[name]
+    if not low <= estimate.extrapolated <= high:
+        return QuantityEstimate(name, ns, None, f"extrapolated {estimate.extrapolated:.3e} outside "
+                                                f"[{low:g}, {high:g}]: the levels are not in the asymptotic range")
+    return QuantityEstimate(name, ns, estimate)
 
 
 def expectation(norm, rate, tolerance, observed):
@@ -156,17 +232,18 @@ def expectation(norm, rate, tolerance, observed):
 
 def format_summary(summary):
     """The verdict block printed under the rate table."""
-    lines = [f"verification: rates fitted over the last {summary.fit_levels} levels, "
-             f"agrees when observed >= proven - {summary.tolerance:g}"]
+    lines = []
+    if summary.outside_theory:
+        lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
+    lines.append(f"verification: rates fitted over the last {summary.fit_levels} levels; interval: the fit ± 2 "
+                 f"standard errors, the successive rates and where they head; agrees only within ± {summary.tolerance:g}")
     lines += [f"  {note}" for note in summary.notes]
-    rows = [("norm", "observed", "proven", "verdict", "paper")]
+    rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
     for v in summary.norms:
         observed = _rate(v.observed) + (f" (plain {_rate(v.plain)}, fit of e/|ln h|)" if v.log_factor else "")
         proven = "-" if v.proven is None else f"{v.proven:g}" + (" |ln h|" if v.log_factor else "")
-        why = v.reference or v.conditions
-        if v.reference and v.proven is None:
-            why = f"{v.reference}: {v.conditions}"
-        rows.append((v.norm, observed, proven, v.verdict, why))
+        why = f"{v.reference}: {v.reason}" if v.reference and v.proven is not None else v.reason
+        rows.append((v.norm, observed, interval(v), proven, v.verdict, why))
     lines += _aligned(rows)
     if summary.quantities:
         lines.append("quantities of interest (three finest levels; Celik et al. 2008, safety factor 1.25):")
@@ -179,11 +256,36 @@ def format_summary(summary):
     return "\n".join(lines)
 
 
+def interval(v):
+    """[lo, hi] of a verdict's fitted rate, '-' without one."""
+    return "-" if v.lo is None else f"[{v.lo:.2f}, {v.hi:.2f}]"
+
+
+def markdown_lines(summary):
+    """The verdicts under a markdown rate table: one line per norm, class and interval."""
+    lines = ["", "| norm | observed | interval | proven | verdict | why |", "|---|---|---|---|---|---|"]
+    for v in summary.norms:
+        proven = "–" if v.proven is None else f"{v.proven:g}"
+        lines.append(f"| {v.norm} | {_rate(v.observed)} | {interval(v)} | {proven} | {v.verdict} | "
+                     f"{v.reason.replace('|', '/')} |")
+    return lines
+
+
+def latex_lines(summary):
+    """The verdicts under a LaTeX rate table: a tabular of norm, observed rate, interval, proven, verdict."""
+    lines = ["", r"\begin{tabular}{lrrrl}", r"\hline", r"norm & observed & interval & proven & verdict \\",
+             r"\hline"]
+    for v in summary.norms:
+        proven = "--" if v.proven is None else f"{v.proven:g}"
+        lines.append(rf"\texttt{{{v.norm.replace('_', chr(92) + '_')}}} & {_rate(v.observed)} & {interval(v)} & "
+                     rf"{proven} & {v.verdict} \\")
+    return lines + [r"\hline", r"\end{tabular}"]
+
+
 def _quantity_row(q):
     g = q.estimate
     if g is None:
-        why = "no order observable" if len(q.levels) == 3 else "needs three converged levels"
-        return (q.quantity, "-", "-", "-", "-", why)
+        return (q.quantity, "-", "-", "-", "-", q.reason)
     finest = f"{g.value:.6e}"
     order = f"{g.order:.2f}" + (" (oscillatory)" if g.oscillatory else "")
     return (q.quantity, finest, order, f"{g.extrapolated:.6e}", f"{100 * g.gci:.3g}%", f"± {g.band:.2e}")
@@ -198,8 +300,8 @@ def _rate(value):
     return "-" if value is None else f"{value:.2f}"
 
 
-SUMMARY_COLUMNS = ("kind", "name", "observed_rate", "plain_rate", "proven_rate", "log_factor", "verdict",
-                   "paper", "conditions", "levels", "value", "order", "extrapolated", "gci", "band",
+SUMMARY_COLUMNS = ("kind", "name", "observed_rate", "rate_lo", "rate_hi", "plain_rate", "proven_rate",
+                   "log_factor", "verdict", "reason", "paper", "conditions", "levels", "value", "order", "extrapolated", "gci", "band",
                    "oscillatory", "expected_rate", "tolerance", "met")
 
 
@@ -207,11 +309,12 @@ def summary_rows(summary):
     """One row per norm, quantity and expectation, over the union of their fields."""
     rows = []
     for v in summary.norms:
-        rows.append(dict(kind="norm", name=v.norm, observed_rate=v.observed, plain_rate=v.plain,
-                         proven_rate=v.proven, log_factor=v.log_factor, verdict=v.verdict,
+        rows.append(dict(kind="norm", name=v.norm, observed_rate=v.observed, rate_lo=v.lo, rate_hi=v.hi,
+                         plain_rate=v.plain, proven_rate=v.proven, log_factor=v.log_factor, verdict=v.verdict,
+                         reason=v.reason,
                          paper=v.reference, conditions=v.conditions, levels=_levels(v.levels)))
     for q in summary.quantities:
-        row = dict(kind="quantity", name=q.quantity, levels=_levels(q.levels))
+        row = dict(kind="quantity", name=q.quantity, levels=_levels(q.levels), reason=q.reason or None)
         if q.estimate is not None:
             row.update(asdict(q.estimate))
         rows.append(row)

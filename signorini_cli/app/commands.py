@@ -208,7 +208,10 @@ def _run_command(args):
             done = _prepare(cfg, args)
         except (ConfigError, yaml.YAMLError, OSError) as err:
             return fail(args.config, err)
-        return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+        try:
+            return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+        except ConfigError as err:  # a problem the first level refuses before solving (problems/posed.py)
+            return fail(args.config, err)
 
 
 def run(cfg, quiet=False, verbose=False, done=()):
@@ -250,7 +253,7 @@ def _outputs(cfg, result, summary):
     named = studies.of(cfg.study_type).tables(cfg, result)
     study = results.Study(cfg.study, cfg.output_dir, results.main_rows(named), study_type=cfg.study_type,
                           tables=named)
-    written = tables.write(study, cfg, cfg.output.digits, plots=cfg.output.plots)
+    written = tables.write(study, cfg, cfg.output.digits, plots=cfg.output.plots, summary=summary)
     header = (f"study {cfg.study} ({cfg.study_type}): {cfg.output_dir} "
               f"(contact term: contact_quadrature {cfg.contact_quadrature})")
     shown = [verdict.format_summary(summary)] if summary is not None else []

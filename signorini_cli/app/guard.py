@@ -147,7 +147,7 @@ def _first_line(err):
 
 
 def status(cfg, result, final=True):
-    """'complete'; 'failed at level k: REASON' when a level did not converge and on_failure is stop;
+    """'complete' ('complete: k of n levels converged' when some did not); 'failed at level k: REASON' when a level did not converge and on_failure is stop;
     else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels), also with every
     level done while tables and figures are still being written (final=False)."""
     solves = list(result)
@@ -156,7 +156,8 @@ def status(cfg, result, final=True):
     if unit == "levels" and last and not last.outcome.converged and cfg.solver.on_failure == "stop":
         return f"failed at level {last.index}: {last.outcome.reason}"
     if len(solves) == cfg.solves and final:
-        return "complete"
+        failed = sum(not s.outcome.converged for s in solves)
+        return "complete" if not failed else f"complete: {len(solves) - failed} of {len(solves)} {unit} converged"
     return f"running ({len(solves)} of {cfg.solves} {unit} done)"
 
 

@@ -1,9 +1,12 @@
 """Whitelisted arithmetic expressions from configs, translated to UFL or numpy without eval."""
 import ast
+import copy
 import math
 from dataclasses import dataclass
 
-FUNCTIONS = ("sin", "cos", "exp", "log", "sqrt", "abs", "tanh")
+FUNCTIONS = ("sin", "cos", "tan", "exp", "log", "sqrt", "abs", "tanh", "sinh", "cosh", "asin", "acos", "atan",
+             "atan2", "min", "max")
+ARITY = {"atan2": 2, "min": 2, "max": 2}  # the others take one argument
 CONSTANTS = {"pi": math.pi, "e": math.e}
 MAX_EXPONENT = 100  # a constant power above this is a typo or an attack, not a solution
 MAX_LENGTH = 2000
@@ -20,8 +23,10 @@ _FORBIDDEN = {ast.Attribute: "attribute access is", ast.Subscript: "subscripts a
               ast.Tuple: "tuples are", ast.Set: "sets are", ast.Dict: "dicts are", ast.Await: "await is"}
 _OPERATORS = {ast.Mod: "%", ast.FloorDiv: "//", ast.MatMult: "@", ast.LShift: "<<", ast.RShift: ">>",
               ast.BitAnd: "&", ast.BitOr: "|", ast.BitXor: "^", ast.Invert: "~", ast.Not: "not"}
-_MATH = {"sin": math.sin, "cos": math.cos, "exp": math.exp, "log": math.log, "sqrt": math.sqrt,
-         "abs": abs, "tanh": math.tanh}  # folds constant sub-expressions at parse time
+_MATH = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "exp": math.exp, "log": math.log,
+         "sqrt": math.sqrt, "abs": abs, "tanh": math.tanh, "sinh": math.sinh, "cosh": math.cosh,
+         "asin": math.asin, "acos": math.acos, "atan": math.atan, "atan2": math.atan2, "min": min,
+         "max": max}  # folds constant sub-expressions at parse time
 
 
 class ExpressionError(ValueError):
@@ -40,8 +45,9 @@ class Expression:
         return _evaluate(self.tree, variables, functions)
 
 
-def parse(text, variables):
-    """Parse `text` and check it uses only numbers, + - * / **, `variables`, pi, e and FUNCTIONS."""
+def parse(text, variables, defined=None):
+    """Parse `text` and check it uses only numbers, + - * / **, `variables`, pi, e, FUNCTIONS and the
+    names `defined` (name -> Expression), which are replaced by their definitions."""
     if isinstance(text, bool) or not isinstance(text, (str, int, float)):
         raise ExpressionError(f"must be an expression string, got {type(text).__name__}")
     if isinstance(text, float) and not math.isfinite(text):
@@ -57,9 +63,35 @@ def parse(text, variables):
                               f"syntax error in {_clip(text)!r} at column {err.offset}: {err.msg}") from None
     except (ValueError, RecursionError) as err:  # NUL bytes; nesting beyond the parser's stack
         raise ExpressionError(f"cannot parse {_clip(text)!r}: {err}") from None
-    grammar = _Grammar(set(variables), source)
+    defined = defined or {}
+    grammar = _Grammar(set(variables) | set(defined), source)
     grammar.check(tree, depth=0)
-    return Expression(text, tree, frozenset(grammar.names))
+    tree = _Inline(defined).visit(tree)
+    used = set().union(*(defined[n].names if n in defined else {n} for n in grammar.names))
+    return Expression(text, tree, frozenset(used))
+
+
+def definitions(texts, variables):
+    """{name: Expression} of named subexpressions, in order: each may use the variables and the names
+    defined before it. `texts` is a mapping name -> expression text."""
+    defined = {}
+    for name, text in texts.items():
+        if not isinstance(name, str) or not name.isidentifier() or name in FUNCTIONS or name in CONSTANTS:
+            raise ExpressionError(f"{name!r}: a definition's name must be a new identifier")
+        if name in variables:
+            raise ExpressionError(f"{name!r}: a definition cannot redefine the variable {name}")
+        defined[name] = parse(text, variables, defined)
+    return defined
+
+
+class _Inline(ast.NodeTransformer):
+    """Replaces each defined name by (a copy of) its definition's tree."""
+
+    def __init__(self, defined):
+        self.defined = defined
+
+    def visit_Name(self, node):
+        return copy.deepcopy(self.defined[node.id].tree) if node.id in self.defined else node
 
 
 def _statement(source):
@@ -135,10 +167,13 @@ class _Grammar:
             raise ExpressionError(f"only calls of plain function names are allowed, not {self.show(node.func)!r}")
         if node.func.id not in FUNCTIONS:
             raise ExpressionError(f"unknown function {_clip(node.func.id)!r} (allowed: {', '.join(FUNCTIONS)})")
-        if node.keywords or len(node.args) != 1:
-            raise ExpressionError(f"{node.func.id}() takes exactly one argument")
-        value = self.check(node.args[0], depth + 1)
-        return None if value is None else self.finite(lambda: _MATH[node.func.id](value), node)
+        arity = ARITY.get(node.func.id, 1)
+        if node.keywords or len(node.args) != arity:
+            raise ExpressionError(f"{node.func.id}() takes exactly {'one argument' if arity == 1 else f'{arity} arguments'}")
+        values = [self.check(arg, depth + 1) for arg in node.args]
+        if any(v is None for v in values):
+            return None
+        return self.finite(lambda: _MATH[node.func.id](*values), node)
 
     def finite(self, compute, node):
         """compute(), which must be a finite real number: a constant part that is not (1e999,
@@ -172,7 +207,7 @@ def _evaluate(node, variables, functions):
         value = _evaluate(node.operand, variables, functions)
         return -value if isinstance(node.op, ast.USub) else value
     if isinstance(node, ast.Call):
-        return functions[node.func.id](_evaluate(node.args[0], variables, functions))
+        return functions[node.func.id](*(_evaluate(arg, variables, functions) for arg in node.args))
     left = _evaluate(node.left, variables, functions)
     right = _evaluate(node.right, variables, functions)
     return {"+": lambda: left + right, "-": lambda: left - right, "*": lambda: left * right,
@@ -187,12 +222,14 @@ def math_functions():
 def ufl_functions():
     """The whitelisted functions as UFL operators."""
     import ufl
-    return {"sin": ufl.sin, "cos": ufl.cos, "exp": ufl.exp, "log": ufl.ln, "sqrt": ufl.sqrt,
-            "abs": abs, "tanh": ufl.tanh}
+    return {"sin": ufl.sin, "cos": ufl.cos, "tan": ufl.tan, "exp": ufl.exp, "log": ufl.ln, "sqrt": ufl.sqrt,
+            "abs": abs, "tanh": ufl.tanh, "sinh": ufl.sinh, "cosh": ufl.cosh, "asin": ufl.asin,
+            "acos": ufl.acos, "atan": ufl.atan, "atan2": ufl.atan_2, "min": ufl.min_value, "max": ufl.max_value}
 
 
 def numpy_functions():
     """The whitelisted functions as numpy ufuncs."""
     import numpy as np
-    return {"sin": np.sin, "cos": np.cos, "exp": np.exp, "log": np.log, "sqrt": np.sqrt,
-            "abs": np.abs, "tanh": np.tanh}
+    return {"sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp, "log": np.log, "sqrt": np.sqrt,
+            "abs": np.abs, "tanh": np.tanh, "sinh": np.sinh, "cosh": np.cosh, "asin": np.arcsin,
+            "acos": np.arccos, "atan": np.arctan, "atan2": np.arctan2, "min": np.minimum, "max": np.maximum}

@@ -39,7 +39,7 @@ COORDINATES = {2: ("x", "y"), 3: ("x", "y", "z")}
 # verification.measures: what a level measures beyond L2/H1 (docs/guide/verification.md)
 MEASURES = names.MEASURE_KEYS
 REFERENCE_EPSILONS = ("per_level", "fixed")
-MAX_REFERENCE_REFINEMENTS = 2
+MAX_REFERENCE_REFINEMENTS = 3  # depth 3 is 64 (2-D) or 512 (3-D) times a level's cells
 # rate columns an `expect:` block may name: exact-solution errors, errors against a reference, differences
 ERROR_NORMS, REFERENCE_NORMS = names.ERROR_NORMS, names.REFERENCE_NORMS
 STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error")  # the last three: docs/limit.md
@@ -153,6 +153,8 @@ class Problem:
                                     only="only without exact")
     exact_solves: str = key("compliance", "compliance | signorini: exact is a Signorini solution u_S, g = 0 "
                                           "(docs/limit.md)")
+    define: tuple = key((), "named subexpressions, in order (later names may use earlier ones)",
+                        example={"r": "sqrt(x**2 + y**2)", "t": "atan2(y, x)"}, only="optional")
 
 
 @dataclass(frozen=True)
@@ -197,9 +199,11 @@ class Solver:
 class Verification:
     """Rate fits, verdict tolerance, extra measures, and the reference solution of data-only scenes."""
     fit_levels: int = key(3, "least-squares slope over the last k converged levels (>= 2)")
-    tolerance: float = key(0.1, "verdict: agrees when observed >= proven - tolerance")
+    tolerance: float = key(0.2, "verdict: inconclusive when the fitted rate's interval is wider than "
+                                "± tolerance (0.2: half the smallest gap between two proven rates, 8/5 and 2)")
     measures: tuple = key(None, f"a list of {', '.join(MEASURES)}; null: every measure the scene can have")
-    reference_refinements: int = key(1, "reference N = finest N * 2^k, k in 0 (none), 1, 2",
+    reference_refinements: int = key(2, "each level against its own mesh refined k times, k in 0 (none) .. 3; "
+                                        "k >= 2 also checks the verdict at depth k - 1",
                                      only="only without problem.exact")
     reference_epsilon: str = key("per_level", "per_level | fixed", only="only without problem.exact")
     regular: bool = key(True, "false: u is not in W^{2,alpha+1}: every verdict is 'not covered'")
@@ -239,7 +243,9 @@ class Config:
     study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study")
     description: str = key("", "one line, shown by `signorini list`")
     dimension: int = key(None, "2 or 3 (default: the mesh's)", example=2)
-    alpha: float = key(2.0, ">= 1; <= 3 in 3-D (the paper's condition (5))")
+    alpha: float = key(2.0, ">= 1; <= 3 in 3-D (the paper's condition (5)) unless outside_theory")
+    outside_theory: bool = key(False, "true: run what a hypothesis check would refuse (alpha > 3 in 3-D); "
+                                      "verdicts say `not covered`")
     epsilon: Epsilon = key(Epsilon(), "the penalty law eps(h)")
     mesh: Mesh = key(None, "the levels")
     contact: str = key(None, "Γ_C: a face (left right bottom top; front back in 3-D) or a mesh's physical group",
@@ -425,8 +431,10 @@ def from_dict(raw, folder=None):
     mesh = _mesh(raw["mesh"], "mesh", Path(folder or "."))
     dim = _dimension(raw.get("dimension", mesh.dimension), mesh)
     alpha = top.number("alpha", low=1.0)
-    if dim == 3 and alpha > MAX_ALPHA_3D:
-        raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g}")
+    outside = top.boolean("outside_theory")
+    if dim == 3 and alpha > MAX_ALPHA_3D and not outside:
+        raise ConfigError("alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {alpha:g} "
+                                     "(outside_theory: true runs it, with no verdict)")
     epsilon = _epsilon(top.section("epsilon"), "epsilon")
     positive = _positive_part(top.section("positive_part"), "positive_part", epsilon)
     base = Config(study=study, dimension=dim, alpha=alpha, epsilon=epsilon,
@@ -438,7 +446,7 @@ def from_dict(raw, folder=None):
                   output=_output(top.section("output"), "output"),
                   verification=_verification(top.section("verification"), "verification", raw.get("problem")),
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
-                  description=top.string("description", empty=True))
+                  description=top.string("description", empty=True), outside_theory=outside)
     return _study_type(_check_geometry_mesh(base, raw), raw)
 
 
@@ -608,13 +616,24 @@ def _problem(raw, path, dim):
         raise ConfigError(path, "missing: give problem.exact (manufactured) or problem.f")
     _keys(raw, path, optional=keys_of(Problem))
     coords = COORDINATES[dim]
-    exact, f, g = (_expression(raw[k], f"{path}.{k}", coords + ("eps",)) if k in raw else None
+    defined = _define(raw.get("define", {}), f"{path}.define", coords + ("eps",))
+    exact, f, g = (_expression(raw[k], f"{path}.{k}", coords + ("eps",), defined) if k in raw else None
                    for k in ("exact", "f", "g"))
     if exact is None and f is None:
         raise ConfigError(path, "give exact (a manufactured solution) or f (data only)")
     if exact is not None and (f is not None or g is not None):
         raise ConfigError(path, "exact determines f and g; give exact alone, or f (and g) alone")
-    return Problem(exact, f, g, _exact_solves(raw, path, exact))
+    return Problem(exact, f, g, _exact_solves(raw, path, exact), tuple(defined.items()))
+
+
+def _define(raw, path, variables):
+    """problem.define: {name: expression}, each checked like problem.exact."""
+    if not isinstance(raw, dict):
+        raise ConfigError(path, "must be a mapping of name to expression, e.g. {r: \"sqrt(x**2 + y**2)\"}")
+    try:
+        return expressions.definitions(raw, variables)
+    except expressions.ExpressionError as err:
+        raise ConfigError(path, str(err)) from None
 
 
 def _positive_part(raw, path, epsilon):
@@ -812,7 +831,8 @@ def _study_type(cfg, raw):
     _signorini_problem(cfg.problem, kind)
     if kind != "total_error" and cfg.output.fields:
         raise ConfigError("output.fields", f"not written by study_type {kind} (refinement and total_error only)")
-    limit = None if kind == "signorini" else _limit(raw.get("limit"), "limit", kind, cfg.dimension)
+    limit = None if kind == "signorini" else _limit(raw.get("limit"), "limit", kind, cfg.dimension,
+                                                            cfg.outside_theory)
     return dataclasses.replace(cfg, study_type=kind, limit=limit)
 
 
@@ -828,7 +848,7 @@ def _signorini_problem(problem, kind):
         raise ConfigError("problem.exact", "study_type total_error measures u_S − u_h: give u_S")
 
 
-def _limit(raw, path, kind, dim):
+def _limit(raw, path, kind, dim, outside=False):
     if raw is None:
         raise ConfigError(path, f"missing: study_type {kind} needs a limit block")
     sweep = kind == "epsilon_sweep"
@@ -836,7 +856,7 @@ def _limit(raw, path, kind, dim):
           optional=("alpha", "fit_last") + (() if sweep else ("theta",)))
     s = _Section(raw, path, Limit)
     alpha = _numbers(raw.get("alpha", list(default(Limit, "alpha"))), s.at("alpha"), low=1.0)
-    if dim == 3 and max(alpha) > MAX_ALPHA_3D:
+    if dim == 3 and max(alpha) > MAX_ALPHA_3D and not outside:
         raise ConfigError(f"{path}.alpha", f"must be <= 3 in 3-D (the paper's condition (5)), got {max(alpha):g}")
     fit_last = s.integer("fit_last", low=2)
     if sweep:
@@ -951,9 +971,9 @@ def _choice(value, path, choices):
     return value
 
 
-def _expression(text, path, variables):
+def _expression(text, path, variables, defined=None):
     try:
-        return expressions.parse(text, variables)
+        return expressions.parse(text, variables, defined)
     except expressions.ExpressionError as err:
         raise ConfigError(path, str(err)) from None
 
@@ -1023,6 +1043,9 @@ def to_dict(cfg):
             out["verification"].pop(key)
     if cfg.expect is not None:
         out["expect"]["rates"] = dict(cfg.expect.rates)
+    out["problem"]["define"] = {name: e.text for name, e in cfg.problem.define}
+    if not cfg.problem.define:
+        out["problem"].pop("define")
     if cfg.solver.method != "newtonls":  # the line search is for newtonls only (rejected otherwise)
         out["solver"].pop("line_search")
     _limit_to_dict(cfg, out)

@@ -40,17 +40,6 @@ def build(mesh_cfg, contact, level, comm=MPI.COMM_WORLD):
     return dataclasses.replace(domain, columns=level_columns(domain, size))
 
 
-def reference_domain(mesh_cfg, contact, refinements, comm=MPI.COMM_WORLD):
-    """(Domain, nested): the finest level refined `refinements` more times; nested with every level of a
-    refine: uniform family, with only the finest of levels meshed one by one."""
-    if mesh_cfg.refine == "uniform":
-        return build(mesh_cfg, contact, mesh_cfg.refinements[-1] + refinements, comm), True
-    domain = read_level(mesh_cfg, contact, mesh_cfg.levels[-1], comm)
-    for _ in range(refinements):
-        domain = refinement.refine(domain)
-    return domain, len(mesh_cfg.levels) == 1
-
-
 def read_level(mesh_cfg, contact, entry, comm=MPI.COMM_WORLD):
     """The mesh of a gmsh size (through the cache) or of a .msh path, with Γ_C and Γ_D tagged."""
     if mesh_cfg.kind == "gmsh":

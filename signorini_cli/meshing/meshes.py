@@ -27,15 +27,6 @@ def build(mesh_cfg, contact, n, comm=MPI.COMM_WORLD):
     return domain_of(msh, tags, n)
 
 
-def reference_domain(mesh_cfg, contact, refinements, comm=MPI.COMM_WORLD):
-    """(Domain, nested): the finest level refined uniformly `refinements` more times, and whether every
-    level of the family is nested in it (then moving a level onto it is exact)."""
-    if mesh_cfg.kind in ("gmsh", "file"):
-        return geometries.reference_domain(mesh_cfg, contact, refinements, comm)
-    n = mesh_cfg.refinements[-1] * 2**refinements
-    return build(mesh_cfg, contact, n, comm), not any(n % k for k in mesh_cfg.refinements)
-
-
 def tag_boundary(msh, face):
     """Tag the facets on the plane x[axis] = value as CONTACT and every other exterior facet DIRICHLET
     (from the exterior facets' vertices: dolfinx's locate_entities_boundary would also build the

@@ -4,6 +4,7 @@ beside the UFL forms into the PETSc residual and Jacobian."""
 import math
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 from scipy import special
 
@@ -127,7 +128,31 @@ def _cone(u, opposite, zeta, beta):
     return m0, m1, m2
 
 
+def positive_power(u_h, dofs, points, beta):
+    """∫_Γc [u_h]_+^beta over the rank's owned Γ_C facets (dofs, points as contact_facet_dofs), summed
+    over ranks: exact for the P1 u_h (the same closed forms as the solve's penalty term)."""
+    local = float(np.sum(measure.facet_sizes(points) * moments(u_h.x.array[dofs], beta)[0])) if len(dofs) else 0.0
+    return u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
 # --- the kinked data term (1/eps)∫_Γc [u_ex]_+^alpha v: adaptive rules around the zeros of u_ex ------
+
+ZERO_ULPS = 64  # |u_ex| <= 64 ulp of its scale is a zero: sin(pi) evaluates to 1.2e-16, not 0
+
+
+def snap_zeros(u_fn, points):
+    """u_fn with values within ZERO_ULPS round-off of zero (scale: max |u_ex| at the facets' vertices) set
+    to 0, so a zero of u_ex on a vertex is a zero to the sign tests (and gets the Gauss-Jacobi piece its
+    kink needs) whichever side of 0 its round-off fell."""
+    with np.errstate(all="ignore"):
+        scale = float(np.max(np.abs(u_fn(points)), initial=0.0))
+    tol = ZERO_ULPS * np.finfo(float).eps * scale
+
+    def snapped(x):
+        u = np.asarray(u_fn(x), dtype=float)
+        return np.where(np.abs(u) <= tol, 0.0, u)
+    return snapped
+
 
 SIGN_SAMPLES = 4  # sub-intervals per line (lattice divisions per triangle) searched for sign changes of u_ex
 GAUSS_POINTS = 10  # Gauss-Legendre / Gauss-Jacobi points per piece (make the test: 1e-12 on facets of h <= 0.1)
@@ -291,7 +316,7 @@ class ContactTerm:
         eps = float(self.eps.value)
         if self.u_exact is None or self._data_eps == eps:
             return
-        u_fn = lambda x: self.u_exact(x, eps)  # noqa: E731
+        u_fn = snap_zeros(lambda x: self.u_exact(x, eps), self.points)
         if self.rule == "vertex":
             self._data = self.sizes[:, None] / self.dofs.shape[1] * psi(u_fn(self.points), self.alpha)
         else:

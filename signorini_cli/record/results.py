@@ -81,7 +81,8 @@ def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
 
 def summary_record(summary):
     """(attributes, rows) of the verdict as study.h5 holds it."""
-    head = {"fit_levels": summary.fit_levels, "tolerance": summary.tolerance, "expectations_met": summary.met}
+    head = {"fit_levels": summary.fit_levels, "tolerance": summary.tolerance, "expectations_met": summary.met,
+            "outside_theory": summary.outside_theory}
     if summary.notes:
         head["notes"] = "\n".join(summary.notes)
     return head, verdict.summary_rows(summary)

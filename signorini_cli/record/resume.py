@@ -1,5 +1,5 @@
 """Resuming a study: its finished levels read back from study.h5 by their index, when the config is
-unchanged and every level up to the last is there whole."""
+unchanged (or only appends levels to the mesh's list) and every level up to the last is there whole."""
 import json
 import math
 
@@ -68,8 +68,19 @@ def check_same_config(cfg, attrs, path):
         except (TypeError, ValueError):
             before = {}
         now = json.loads(json.dumps(config.canonical(cfg), sort_keys=True, default=str))
+        if extends(before, now, cfg.mesh.level_key):
+            return
         raise ConfigError("--resume", f"the config changed since {path} was written "
                                       f"({differences(before, now)}); {FORCE}")
+
+
+def extends(before, now, key):
+    """Whether `now` is the config `before` with levels appended to mesh.<key>: the finished levels solved
+    the same problems, so the study goes on with the new ones."""
+    old, new = before.get("mesh", {}).get(key), now.get("mesh", {}).get(key)
+    if not isinstance(old, list) or not isinstance(new, list) or len(new) <= len(old) or new[:len(old)] != old:
+        return False
+    return dict(before, mesh=dict(before["mesh"], **{key: new})) == now
 
 
 def differences(before, now):

@@ -14,6 +14,7 @@ from . import plots as plotting  # its matplotlib import waits inside its functi
 
 TERMINAL_WIDTH = 120  # columns of a terminal table; wider ones wrap into blocks
 PAPER_LEADING = ("N", "h", "epsilon", "newton_its")  # what a paper shows before the errors
+ALWAYS = ("L2", "H1", "L2_ref", "H1_ref")  # in the paper columns whether the paper bounds them or not
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
 FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})
@@ -49,11 +50,11 @@ def choose(rows, columns="paper", proven=None):
 
 
 def paper_norms(measured, proven):
-    """The measured norms with a proven rate, pos_gc_scaled left out beside pos_gc (a power of it,
-    Corollary 3.2 ii); with no proven rate known, the first two measured (L2, H1)."""
-    shown = [n for n in measured if n in proven and not (n.startswith("pos_gc_scaled")
-                                                          and n.replace("_scaled", "") in proven)]
-    return shown or measured[:2]
+    """L2 and H1 (or their _ref forms), proven rate or not, and the measured norms with a proven rate,
+    pos_gc_scaled left out beside pos_gc (a power of it, Corollary 3.2 ii); else the first two measured."""
+    shown = {n for n in measured if n in proven and not (n.startswith("pos_gc_scaled")
+                                                         and n.replace("_scaled", "") in proven)}
+    return [n for n in measured if n in shown or n in ALWAYS] or measured[:2]
 
 
 def h_per_N(rows):
@@ -383,10 +384,11 @@ def _which(row):
 
 # --- everything a study leaves besides rates.csv and study.h5 -----------------------------------
 
-def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None, suffix=""):
+def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figure=None, suffix="", summary=None):
     """The tables (<name><suffix>.md, .tex) and (if `plots`) the figures a study of its type reports, into
     `folder`; the paths written. `columns` as output.columns for its rate tables (default: the config's,
-    else "paper"); given, they also choose the plotted norms. `figure`: plots.Layout options."""
+    else "paper"); given, they also choose the plotted norms. `figure`: plots.Layout options; `summary`
+    (verdict.Summary): its verdicts under the first table."""
     folder = Path(folder or study.folder)
     shown, figures = studies.of(study.study_type).reported(cfg, study.tables or {"rates": study.rows})
     description = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
@@ -397,13 +399,17 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
         path.parent.mkdir(parents=True, exist_ok=True)
         how = (chosen, proven) if table.paper else ("all", {})
         part = "" if table.paper and "/" not in table.name else f", table {table.name}"
+        verdicts = ([], []) if summary is None or table is not shown[0] else (
+            verdict.markdown_lines(summary), verdict.latex_lines(summary))
         comment = (description + part).replace("--", "- -")  # "-->" in a description would end the comment
         written.append(path.with_name(path.name + ".md"))
-        written[-1].write_text(f"<!-- {comment} -->\n" + markdown_table(table.rows, digits, *how))
+        written[-1].write_text("\n".join([f"<!-- {comment} -->\n" + markdown_table(table.rows, digits, *how)
+                                          .rstrip("\n")] + verdicts[0]) + "\n")
         caption = caption_of(study.name, cfg, _variational(table.rows)) + latex.escape(part)
+        key = latex.label(study.name, table.name if part else "", suffix)
         written.append(path.with_name(path.name + ".tex"))
-        written[-1].write_text(latex_table(table.rows, digits, caption, *how,
-                                           key=latex.label(study.name, table.name if part else "", suffix)))
+        written[-1].write_text("\n".join([latex_table(table.rows, digits, caption, *how, key=key).rstrip("\n")]
+                                         + verdicts[1]) + "\n")
     if plots:
         shown_norms = choose(study.rows, chosen, proven)[1] if chosen != "paper" and study.rows else None
         written += draw(figures, study, cfg, folder, proven, figure, shown_norms, suffix)

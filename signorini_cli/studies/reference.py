@@ -1,5 +1,6 @@
-"""Reference solutions for scenes given by their data only: the same problem solved on the mesh one or
-two uniform refinements beyond the finest level, levels moved onto it by an exact (nested) transfer."""
+"""Reference solutions for scenes given by their data only: each level's problem solved again on its own
+mesh refined 1, ..., k times (k = verification.reference_refinements), the level moved onto them by an
+exact (nested) transfer."""
 import dataclasses
 import logging
 import time
@@ -8,7 +9,8 @@ from mpi4py import MPI
 
 from dolfinx import fem
 
-from ..meshing import meshes
+from ..config import MESH_KINDS
+from ..meshing import meshes, refinement
 from ..problems import compliance, measure
 from ..solve import strategies
 from ..solve.transfer import transfer
@@ -17,56 +19,70 @@ logger = logging.getLogger(__name__)
 
 
 class Reference:
-    """u_ref on the reference mesh, solved once per eps (reference_epsilon: per_level compares each
-    level with u_ref at that level's eps; fixed with u_ref at the law's eps on the reference mesh)."""
+    """Each level's reference at a fixed depth k: once the rates settle, a level's distance to its
+    reference is a fixed fraction of its error, e (1 - 2^-pk), the same on every level, so the fitted rate
+    does not depend on k (a reference at one depth below the finest level would bias the finest levels).
+    The reference one refinement shallower gives the same columns at depth k - 1 (suffix _shallow) and
+    the reference's own estimated error, ref_err_* = ||u_ref(k-1) - u_ref(k)||."""
 
     def __init__(self, cfg, comm=MPI.COMM_WORLD):
         self.cfg, self.comm = cfg, comm
-        self.n = None  # the reference level's N, once built
-        self.domain = None
-        self.solutions = {}  # eps -> (u_ref, converged)
+        self.depth = cfg.verification.reference_refinements
 
-    def eps_for(self, level_eps):
-        """The eps of the reference a level with eps = level_eps is compared with."""
+    def eps_for(self, level_eps, domain):
+        """The eps of a reference on `domain` for a level with eps = level_eps: the level's own
+        (reference_epsilon: per_level) or the law's on the reference mesh (fixed)."""
         if self.cfg.verification.reference_epsilon == "per_level":
             return level_eps
-        return self.cfg.epsilon(self.mesh().h)
+        return self.cfg.epsilon(domain.h)
 
-    def mesh(self):
-        """The reference level's Domain, built on first use."""
-        if self.domain is None:
-            self.domain, nested = meshes.reference_domain(self.cfg.mesh, self.cfg.contact,
-                                                          self.cfg.verification.reference_refinements, self.comm)
-            self.n = self.domain.n
-            if not nested:
-                logger.warning("reference N=%d: not every level is nested in it, the transfer to it "
-                               "interpolates instead of being exact", self.n)
-        return self.domain
+    def measure(self, index, domain, u_h, level_eps, with_contact):
+        """(errors, converged, seconds): the level's errors against its references at depths k and k - 1."""
+        begin, chain, previous = time.perf_counter(), [], u_h
+        for depth in range(1, self.depth + 1):
+            finer = finer_domain(self.cfg, index, domain, depth, chain[-1][0] if chain else domain)
+            u_ref = fem.Function(fem.FunctionSpace(finer.mesh, ("Lagrange", 1)), name="u_ref")
+            outcome = solve(self.cfg, finer, u_ref, self.eps_for(level_eps, finer), previous)
+            if not outcome.converged:
+                logger.warning("reference of level %d at depth %d did not converge: %s", index, depth,
+                               outcome.reason)
+                return {}, False, self._seconds(begin)
+            chain.append((finer, u_ref))
+            previous = u_ref
+        found = self.errors(u_h, chain[-1], level_eps, with_contact)
+        coarser = chain[-2][1] if len(chain) > 1 else u_h
+        found.update({f"ref_err_{name}": value for name, value in
+                      measure.difference_norms(transfer(coarser, chain[-1][1].function_space), chain[-1][1]).items()})
+        if len(chain) > 1:
+            found.update({f"{name}_ref_shallow": value for name, value in
+                          measure.difference_norms(transfer(u_h, chain[-2][1].function_space), chain[-2][1]).items()})
+        return found, True, self._seconds(begin)
 
-    def solution(self, eps_value, start):
-        """(u_ref, converged, seconds spent): solved at eps_value from `start` (a level's u_h) moved to
-        the reference mesh, or taken from the cache."""
-        if eps_value in self.solutions:
-            return (*self.solutions[eps_value], 0.0)
-        begin = time.perf_counter()
-        domain = self.mesh()
-        u_ref = fem.Function(fem.FunctionSpace(domain.mesh, ("Lagrange", 1)), name="u_ref")
-        outcome = solve(self.cfg, domain, u_ref, eps_value, start)
-        if not outcome.converged:
-            logger.warning("reference N=%d at eps=%.3e did not converge: %s", self.n, eps_value, outcome.reason)
-        self.solutions[eps_value] = (u_ref, outcome.converged)
-        return u_ref, outcome.converged, self.comm.allreduce(time.perf_counter() - begin, op=MPI.MAX)
+    def _seconds(self, begin):
+        return self.comm.allreduce(time.perf_counter() - begin, op=MPI.MAX)
 
-    def errors(self, u_h, u_ref, eps_value, with_contact):
-        """{'L2_ref', 'H1_ref'} and, with_contact, the Γ_C errors (suffix _ref) of u_h against u_ref
-        at eps_value (the level's eps: the eps its own energy-type error is scaled with)."""
-        domain = self.mesh()
+    def errors(self, u_h, reference, eps_value, with_contact):
+        """{'L2_ref', 'H1_ref'} and, with_contact, the Γ_C errors (suffix _ref) of u_h against the
+        reference (domain, u_ref) at eps_value (the level's eps: its energy-type error's scaling)."""
+        domain, u_ref = reference
         moved = transfer(u_h, u_ref.function_space)
         found = measure.difference_norms(moved, u_ref)
         if with_contact:
             ds_c = domain.ds_c(measure.ERROR_DEGREE)  # the positive parts kink inside facets
             found.update(measure.contact_errors(moved, u_ref, eps_value, self.cfg.alpha, ds_c, found["H1"]))
         return {f"{name}_ref": value for name, value in found.items()}
+
+
+def finer_domain(cfg, index, domain, depth, previous):
+    """Level `index` (its Domain `domain`) refined `depth` times: the built-in grids and gmsh/file
+    families of refine: uniform build it as the family would (the same mesh a finer level has), other
+    meshes refine `previous` (the depth - 1 mesh) once more."""
+    entry = cfg.mesh.levels[index]
+    if cfg.mesh.kind in MESH_KINDS:
+        return meshes.build(cfg.mesh, cfg.contact, entry * 2**depth, domain.mesh.comm)
+    if cfg.mesh.refine == "uniform":
+        return meshes.build(cfg.mesh, cfg.contact, entry + depth, domain.mesh.comm)
+    return refinement.refine(previous)
 
 
 def solve(cfg, domain, u, eps_value, previous):

@@ -6,7 +6,7 @@ import math
 import h5py
 import pytest
 
-from signorini_cli.analysis import verdict
+from signorini_cli.analysis import rates, verdict
 from signorini_cli.record import csvfile, h5 as record_h5, results
 from signorini_cli.solve.solver import Outcome
 from signorini_cli.studies import Level
@@ -30,17 +30,70 @@ def levels(errors, extra=None, converged=None):
     return out
 
 
-@pytest.mark.parametrize("observed, proven, tolerance, expected", [
-    pytest.param(1.9, 2.0, 0.1, verdict.AGREES, id="exactly-at-tolerance"),
-    pytest.param(1.9 - 1e-9, 2.0, 0.1, verdict.BELOW, id="just-below"),
-    pytest.param(2.6, 2.0, 0.1, verdict.AGREES, id="above-proven"),
-    pytest.param(2.0, 2.0, 0.0, verdict.AGREES, id="zero-tolerance"),
-    pytest.param(1.5, None, 0.1, verdict.NOT_COVERED, id="not-covered"),
-    pytest.param(None, 2.0, 0.1, verdict.NO_RATE, id="no-rate"),
-    pytest.param(None, None, 0.1, verdict.NOT_COVERED, id="neither"),
+def fit_of(rates_in_fit, start=1.0):
+    """A rates.Fit over levels whose successive rates are `rates_in_fit` (h halving from 0.2)."""
+    h, e = [0.2], [start]
+    for r in rates_in_fit:
+        h.append(h[-1] / 2)
+        e.append(e[-1] / 2**r)
+    return rates.fit(h, e, [True] * len(h), k=len(h))
+
+
+@pytest.mark.parametrize("successive, proven, expected", [
+    pytest.param((2.0, 2.0), 2.0, verdict.AGREES, id="exact-power-law"),
+    pytest.param((1.97, 1.99), 2.0, verdict.AGREES, id="drift-covers-proven"),
+    pytest.param((1.98, 1.99), 1.6, verdict.EXCEEDS, id="bound-not-sharp"),
+    pytest.param((0.80, 0.82), 1.0, verdict.BELOW, id="below"),
+    pytest.param((0.60, 0.98), 1.0, verdict.INCONCLUSIVE, id="still-drifting"),
+    pytest.param((2.0,), 2.0, verdict.INCONCLUSIVE, id="two-levels"),
+    pytest.param((2.0, 2.0), None, verdict.NOT_COVERED, id="not-covered"),
 ])
-def test_decide_edges(observed, proven, tolerance, expected):
-    assert verdict.decide(observed, proven, tolerance) == expected
+def test_decide_classes(successive, proven, expected):
+    # widest 0.2: the default verification.tolerance (half the gap between the proven 8/5 and 2)
+    found, reason = verdict.decide(fit_of(successive), proven, 0.2, "why not")
+    assert found == expected and reason
+
+
+def test_decide_interval_holds_fit_rates_and_their_limit():
+    found = fit_of((1.98, 2.0))
+    # three levels: se = drift/sqrt(12); one change known: rho = 2/3, the rates head 2 x 0.02 further on
+    assert found.se == pytest.approx(0.02 / math.sqrt(12)) and found.limit == pytest.approx(2.04)
+    # 2 se = 0.012 is below the narrowest half-width, 0.02
+    assert found.lo == pytest.approx(1.99 - rates.MIN_HALF) and found.hi == pytest.approx(2.04)
+    assert verdict.decide(found, 1.6, 0.2)[1] == ("observed 1.99 in [1.97, 2.04] > proven 1.6: the bound is not "
+                                                  "sharp on this case")
+    # two changes known: rho = 0.01/0.04 from them, the rest of the way 0.01 rho/(1 - rho)
+    assert fit_of((1.94, 1.98, 1.99)).limit == pytest.approx(1.99 + 0.01 / 3)
+
+
+def test_settling_rates_below_the_proven_rate_are_below():
+    # the L-shape's H1_ref (corner singularity): 0.71, 0.66, 0.62, 0.59 heading to ~0.5, far from 1
+    assert verdict.decide(fit_of((0.71, 0.66, 0.62, 0.59)), 1.0, 0.2)[0] == verdict.BELOW
+
+
+def test_rates_settling_toward_the_proven_rate_agree():
+    # the demo's L2 (2-D, alpha = 2, eps = h, N = 32..256): rates 1.972, 1.987, 1.995 still rising toward 2;
+    # and its first levels alone, N = 8..32: 1.91, 1.95
+    assert verdict.decide(fit_of((1.91, 1.95)), 2.0, 0.2)[0] == verdict.AGREES
+    found = fit_of((1.9724, 1.9866, 1.9948))
+    assert verdict.decide(found, 2.0, 0.2)[0] == verdict.AGREES
+
+
+def test_decide_reasons_name_the_cause():
+    assert "too few levels: 2" in verdict.decide(fit_of((2.0,)), 2.0, 0.2)[1]
+    assert "rates still drifting (0.60 -> 0.98)" in verdict.decide(fit_of((0.60, 0.98)), 1.0, 0.2)[1]
+    # a wide interval wholly above the proven rate still exceeds it (the demo's pos_gc on N = 8..32)
+    assert verdict.decide(fit_of((2.45, 2.30)), 1.0, 0.2)[0] == verdict.EXCEEDS
+    assert verdict.decide(fit_of((2.0, 2.0)), None, 0.2, "α = 4 > 3, condition (5)")[1] == "α = 4 > 3, condition (5)"
+
+
+def test_tolerance_never_flips_a_class(make_config):
+    # the knob only moves a verdict to or from inconclusive: agrees/exceeds/below come from the data
+    lv = levels({"L2": [h**2 for h in H], "H1": [h**0.8 for h in H]})
+    for tolerance in (0.05, 0.2, 1.0):
+        by_norm = {v.norm: v.verdict for v in verdict.summarize(make_config(verification={"tolerance": tolerance}),
+                                                                 lv).norms}
+        assert by_norm == {"L2": verdict.AGREES, "H1": verdict.BELOW}
 
 
 def test_summarize_fits_and_judges(make_config):
@@ -50,6 +103,37 @@ def test_summarize_fits_and_judges(make_config):
     assert by_norm["L2"].observed == pytest.approx(2) and by_norm["L2"].verdict == verdict.AGREES
     assert by_norm["H1"].observed == pytest.approx(0.8) and by_norm["H1"].verdict == verdict.BELOW
     assert by_norm["L2"].levels == (10, 20, 40)  # the last fit_levels = 3 levels
+    assert by_norm["L2"].lo == pytest.approx(2 - rates.MIN_HALF) and by_norm["L2"].hi == pytest.approx(2 + rates.MIN_HALF)
+
+
+def test_3d_alpha2_rate_2_exceeds_8_5(make_config):
+    cfg = make_config(dimension=3, mesh={"kind": "unit_cube", "refinements": [5, 10, 20, 40]})
+    (l2,) = verdict.summarize(cfg, levels({"L2": [h**1.98 for h in H]})).norms
+    assert l2.proven == pytest.approx(1.6) and l2.verdict == verdict.EXCEEDS and "not sharp" in l2.reason
+
+
+def test_g_independent_of_eps_under_h_law_is_not_covered(make_config):
+    data = {"problem": {"exact": None, "f": "10", "g": "0.1"}}
+    extra = {"L2_ref": [h**2 for h in H], "rate_L2_ref": [None] * 4}
+    moving = verdict.summarize(make_config(**data), levels({"L2_ref": extra["L2_ref"]}, extra)).norms[0]
+    assert moving.verdict == verdict.NOT_COVERED and "does not scale with eps" in moving.reason
+    scaled = make_config(problem={"exact": None, "f": "10", "g": "0.1*eps"})
+    assert verdict.summarize(scaled, levels({"L2_ref": extra["L2_ref"]}, extra)).norms[0].verdict == verdict.AGREES
+
+
+def test_constant_eps_carries_its_caveat(make_config):
+    cfg = make_config(epsilon={"law": "constant", "theta": 1e-14})
+    (l2, h1) = verdict.summarize(cfg, levels({"L2": [h**2 for h in H], "H1": [h for h in H]})).norms
+    assert "holds only once h <~ eps" in h1.reason and "holds only once" in l2.reason
+
+
+def test_outside_theory_is_marked_not_covered(make_config):
+    cfg = make_config(dimension=3, alpha=4.0, outside_theory=True,
+                      mesh={"kind": "unit_cube", "refinements": [5, 10, 20, 40]})
+    summary = verdict.summarize(cfg, levels({"L2": [h**2 for h in H], "H1": [h for h in H]}))
+    assert {v.verdict for v in summary.norms} == {verdict.NOT_COVERED}
+    assert all(v.reason == "α = 4 > 3, condition (5)" for v in summary.norms)
+    assert verdict.format_summary(summary).startswith("OUTSIDE THE PAPER'S THEORY")
 
 
 def test_singular_scene_is_not_covered_rather_than_below(make_config):
@@ -63,9 +147,9 @@ def test_singular_scene_is_not_covered_rather_than_below(make_config):
 
 def test_summarize_log_factor_case(make_config):
     cfg = make_config(alpha=3.0)  # Lemma 4.5: O(h^2 |ln h|); an error of exactly that size agrees
-    lv = levels({"L2": [0.9 * h**1.95 * -math.log(h) for h in H]})
+    lv = levels({"L2": [0.9 * h**2 * -math.log(h) for h in H]})
     (l2,) = verdict.summarize(cfg, lv).norms
-    assert l2.log_factor and l2.observed == pytest.approx(1.95) and l2.plain < l2.observed
+    assert l2.log_factor and l2.observed == pytest.approx(2) and l2.plain < l2.observed
     assert l2.verdict == verdict.AGREES
 
 
@@ -83,7 +167,7 @@ def test_successive_differences_not_covered_when_eps_moves(make_config):
     fixed = verdict.summarize(make_config(epsilon={"law": "constant", "theta": 0.1}, **data),
                               levels(diffs, extra)).norms[0]
     assert moving.verdict == verdict.NOT_COVERED and "different eps" in moving.conditions
-    assert fixed.verdict == verdict.AGREES and fixed.proven == 2
+    assert fixed.verdict == verdict.AGREES and fixed.proven == 2 and "eps constant" in fixed.reason
 
 
 def test_expect_met_and_missed(make_config):
@@ -97,7 +181,7 @@ def test_expect_met_and_missed(make_config):
 
 
 def test_quantities_get_gci_for_data_only_scenes(make_config):
-    cfg = make_config(problem={"exact": None, "f": "10"})
+    cfg = make_config(problem={"exact": None, "f": "10"}, epsilon={"law": "constant", "theta": 0.1})
     force = [2.0 - 0.3 * h**2 for h in H]
     lv = levels({}, {"contact_force": force, "penetration": [0.1] * 4})
     quantities = {q.quantity: q for q in verdict.summarize(cfg, lv).quantities}
@@ -105,6 +189,17 @@ def test_quantities_get_gci_for_data_only_scenes(make_config):
     assert quantities["contact_force"].estimate.extrapolated == pytest.approx(2.0)
     assert quantities["penetration"].estimate is None  # constant: no order to observe
     assert "no order observable" in verdict.format_summary(verdict.summarize(cfg, lv))
+
+
+def test_quantities_extrapolated_only_for_one_continuous_problem(make_config):
+    lv = levels({}, {"contact_force": [2.0 - 0.3 * h**2 for h in H]})
+    moving = verdict.summarize(make_config(problem={"exact": None, "f": "10"}), lv).quantities[0]
+    assert moving.estimate is None and "another continuous problem" in moving.reason
+    # a positive quantity falling fast toward 0: Richardson would extrapolate below 0
+    falling = levels({}, {"penetration": [0.1, 0.05, 0.02, 0.001]})
+    cfg = make_config(problem={"exact": None, "f": "10"}, epsilon={"law": "constant", "theta": 0.1})
+    (penetration,) = verdict.summarize(cfg, falling).quantities
+    assert penetration.estimate is None and "outside [0, inf]" in penetration.reason
 
 
 def test_summary_csv_and_h5(make_config, tmp_path):
@@ -117,4 +212,17 @@ def test_summary_csv_and_h5(make_config, tmp_path):
     record_h5.write(tmp_path / "s.h5", {}, {}, summary_rows=results.summary_record(summary))
     with h5py.File(tmp_path / "s.h5") as h5:
         assert h5["verification/norm/L2"].attrs["verdict"] == "agrees"
+        assert h5["verification/norm/L2"].attrs["rate_lo"] == pytest.approx(2 - rates.MIN_HALF)
         assert h5["verification"].attrs["expectations_met"]
+
+
+def test_reference_depths_that_disagree_are_inconclusive(make_config):
+    data = {"problem": {"exact": None, "f": "10"}}
+    deep = [h**2 for h in H]
+    extra = {"L2_ref": deep, "rate_L2_ref": [None] * 4}
+    same = levels({"L2_ref": deep, "L2_ref_shallow": [0.75 * e for e in deep]}, extra)
+    assert verdict.summarize(make_config(**data), same).norms[0].verdict == verdict.AGREES
+    # one refinement shallower the last levels flatten (the reference's own error): another class
+    biased = levels({"L2_ref": deep, "L2_ref_shallow": [0.04, 0.01, 0.004, 0.003]}, extra)
+    (l2,) = verdict.summarize(make_config(**data), biased).norms
+    assert l2.verdict == verdict.INCONCLUSIVE and "the reference depth decides" in l2.reason

@@ -79,7 +79,8 @@ def test_expect_missed_exit_1_with_verdict(tmp_path, capsys):
     assert "expect H1 >= 3 - 0.1: NOT MET" in out
     with open(tmp_path / "out" / "t" / "summary.csv") as f:
         rows = {(r["kind"], r["name"]): r for r in csv.DictReader(f)}
-    assert rows[("expect", "H1")]["met"] == "false" and rows[("norm", "H1")]["verdict"] == "agrees"
+    # two levels give a slope but no verdict: too few to tell how settled it is
+    assert rows[("expect", "H1")]["met"] == "false" and rows[("norm", "H1")]["verdict"] == "inconclusive"
 
 
 def test_expect_met_exit_0(tmp_path):

@@ -126,6 +126,9 @@ def test_output_report_keys():
     pytest.param({"epsilon": {"law": "power", "exponent": 1.5}, "positive_part": "smooth",
                   "solver": {"petsc_options": {"ksp_view": None}}}, id="power-smooth-options"),
     pytest.param({"problem": {"exact": None, "f": "-10"}}, id="data-only"),
+    pytest.param({"problem": {"define": {"r": "sqrt(x**2 + y**2)", "t": "atan2(y, x)"},
+                              "exact": "r**(2/3)*sin(2*t/3)"}}, id="define"),
+    pytest.param({"outside_theory": True}, id="outside-theory"),
 ])
 def test_to_dict_round_trip(changes):
     resolved = config.to_dict(load(changes))
@@ -133,10 +136,26 @@ def test_to_dict_round_trip(changes):
     assert list(resolved)[:2] == ["study", "description"] and "text" not in resolved
 
 
+def test_define_feeds_exact_and_its_errors_name_the_key():
+    cfg = load({"problem": {"define": {"r": "sqrt(x**2 + y**2)"}, "exact": "r**2"}})
+    assert cfg.problem.exact({"x": 3.0, "y": 4.0}, config.expressions.math_functions()) == pytest.approx(25)
+    with pytest.raises(config.ConfigError, match=r"^problem.define: unknown name 'q'"):
+        load({"problem": {"define": {"r": "q*x"}, "exact": "r"}})
+    with pytest.raises(config.ConfigError, match=r"^problem.define: must be a mapping"):
+        load({"problem": {"define": ["r"], "exact": "x"}})
+
+
+def test_outside_theory_lifts_condition_5():
+    cube = {"dimension": 3, "mesh": {"kind": "unit_cube", "refinements": [2, 4]}, "alpha": 4.0}
+    with pytest.raises(config.ConfigError, match=r"^alpha: must be <= 3 in 3-D .*outside_theory: true runs it"):
+        load(cube)
+    assert load(dict(cube, outside_theory=True)).alpha == 4.0
+
+
 def test_verification_defaults_and_expect():
     cfg = load({"expect": {"rates": {"L2": 2, "H1": 1.0}}})
-    assert cfg.verification == config.Verification(fit_levels=3, tolerance=0.1, measures=None,
-                                                   reference_refinements=1, reference_epsilon="per_level")
+    assert cfg.verification == config.Verification(fit_levels=3, tolerance=0.2, measures=None,
+                                                   reference_refinements=2, reference_epsilon="per_level")
     assert dict(cfg.expect.rates) == {"L2": 2.0, "H1": 1.0} and cfg.expect.tolerance == 0.1
     assert load({}).expect is None
     data = load({"problem": {"exact": None, "f": "10"}, "expect": {"rates": {"L2_ref": 2}},
@@ -159,8 +178,8 @@ DATA_ONLY = {"problem": {"exact": None, "f": "10"}}
                  id="measure-twice"),
     pytest.param({"verification": {"reference_epsilon": "fixed"}},
                  "verification.reference_epsilon: only meaningful without problem.exact", id="ref-eps-exact"),
-    pytest.param(dict(DATA_ONLY, verification={"reference_refinements": 3}),
-                 "verification.reference_refinements: must be <= 2, got 3", id="ref-refinements"),
+    pytest.param(dict(DATA_ONLY, verification={"reference_refinements": 4}),
+                 "verification.reference_refinements: must be <= 3, got 4", id="ref-refinements"),
     pytest.param(dict(DATA_ONLY, verification={"reference_epsilon": "each"}),
                  "verification.reference_epsilon: 'each' is not one of per_level, fixed", id="ref-eps"),
     pytest.param({"verification": {"fit_level": 3}}, "verification.fit_level: unknown key in verification "

@@ -123,3 +123,49 @@ def test_math_functions_raise_where_numpy_returns_nan():
     assert expressions.parse("sqrt(h)", ("h",))({"h": 4.0}, expressions.math_functions()) == 2.0
     with pytest.raises(ValueError):
         expressions.parse("log(h)", ("h",))({"h": 0.0}, expressions.math_functions())
+
+
+# --- the functions of research problems and named definitions ----------------------------------------
+
+@pytest.mark.parametrize("text, reference", [
+    pytest.param("atan2(y, x)", np.arctan2, id="atan2"),
+    pytest.param("min(x, y)", np.minimum, id="min"),
+    pytest.param("max(x, y)", np.maximum, id="max"),
+])
+def test_two_argument_functions_agree_with_numpy(text, reference):
+    x, y = np.array([-1.0, 0.5, 0.0]), np.array([1.0, -0.5, 0.0])
+    assert np.array_equal(expressions.parse(text, XY)({"x": x, "y": y}, expressions.numpy_functions()),
+                          reference(y, x) if text.startswith("atan2") else reference(x, y))
+
+
+@pytest.mark.parametrize("name", ["asin", "acos", "atan", "sinh", "cosh", "tan"])
+def test_one_argument_functions_fold_and_evaluate(name):
+    folded = getattr(math, name)(0.3)
+    assert expressions.parse(f"{name}(0.3) + 0*x", XY)({"x": 0.0, "y": 0.0}, expressions.math_functions()) == folded
+
+
+def test_arity_is_checked():
+    with pytest.raises(expressions.ExpressionError, match=r"^atan2\(\) takes exactly 2 arguments"):
+        expressions.parse("atan2(y)", XY)
+    with pytest.raises(expressions.ExpressionError, match=r"^sin\(\) takes exactly one argument"):
+        expressions.parse("sin(x, y)", XY)
+
+
+def test_definitions_inline_in_order():
+    defined = expressions.definitions({"r": "sqrt(x**2 + y**2)", "t": "atan2(y, x)", "s": "r*t"}, XY)
+    corner = expressions.parse("r**(2/3)*sin(2*t/3) + s", XY, defined)
+    x, y = -0.5, 0.5
+    r, t = math.hypot(x, y), math.atan2(y, x)
+    assert corner({"x": x, "y": y}, expressions.math_functions()) == pytest.approx(r**(2/3) * math.sin(2*t/3) + r*t,
+                                                                                 rel=1e-15)
+    assert corner.names == {"x", "y"}  # what the definitions use, not their names
+
+
+@pytest.mark.parametrize("texts, message", [
+    pytest.param({"t": "r*2", "r": "x"}, "unknown name 'r'", id="later-name-first"),
+    pytest.param({"x": "y"}, "'x': a definition cannot redefine the variable x", id="redefine-variable"),
+    pytest.param({"sin": "x"}, "'sin': a definition's name must be a new identifier", id="function-name"),
+])
+def test_definitions_rejected(texts, message):
+    with pytest.raises(expressions.ExpressionError, match="^" + re.escape(message)):
+        expressions.definitions(texts, XY)

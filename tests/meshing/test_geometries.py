@@ -114,18 +114,6 @@ def test_refinement_keeps_tagged_measures(tmp_path):
     assert twice.n == 16 * base.n  # 2-D: every cell split in four, twice
 
 
-@pytest.mark.parametrize("mesh, nested", [
-    pytest.param({"sizes": [0.3], "refine": "uniform", "refinements": [0, 1]}, True, id="nested-family"),
-    pytest.param({"sizes": [0.3, 0.2]}, False, id="meshed-one-by-one"),
-])
-def test_reference_domain_refines_finest_level(tmp_path, mesh, nested):
-    cfg = mesh_config(tmp_path, geometry="half_disk", **mesh)
-    finest = meshes.build(cfg.mesh, cfg.contact, cfg.mesh.levels[-1])
-    reference, is_nested = meshes.reference_domain(cfg.mesh, cfg.contact, 1)
-    assert is_nested == nested and reference.n == 4 * finest.n  # 2-D: one refinement, four times the cells
-    assert measure(reference, CONTACT) == pytest.approx(measure(finest, CONTACT), rel=ROUND_OFF)
-
-
 def test_level_columns_half_disk(tmp_path):
     cfg = mesh_config(tmp_path, geometry="half_disk", sizes=[0.3], refine="uniform", refinements=[0, 1])
     coarse, fine = (meshes.build(cfg.mesh, cfg.contact, k) for k in (0, 1))

@@ -161,3 +161,18 @@ def test_two_ranks_match_one(changes):
         assert p.outcome.converged and s.outcome.converged
         for norm in ("L2", "H1"):  # tight solves: the two differ by round-off in the sums only
             assert p.errors[norm] == pytest.approx(s.errors[norm], rel=1e-10)
+
+
+@pytest.mark.parametrize("n", [64, 128])
+def test_data_term_with_a_zero_on_a_vertex_matches_mpmath(n):
+    # u = sin(2 pi x) on y = 0 has its zero x = 1/2 on a vertex, where numpy gives 1.2e-16, not 0: the
+    # segment ending there is kinked like (1/2 - x)^1.5 and needs the Gauss-Jacobi piece
+    alpha = 1.5
+    points = np.array([[[0.5 - 1 / n, 0, 0], [0.5, 0, 0]], [[0.5, 0, 0], [0.5 + 1 / n, 0, 0]]])
+    u_fn = contact.snap_zeros(lambda x: np.sin(2 * np.pi * x[..., 0]), points)
+    found = contact.data_on_segments(u_fn, alpha, points)
+    mpmath.mp.dps = 30
+    expected = np.array([[float(mpmath.quad(lambda t: psi(mpmath.sin(2 * mpmath.pi * (p[0][0] + t / n)), alpha)
+                                             * w(t), [0, 1]) / n) for w in (lambda t: 1 - t, lambda t: t)]
+                         for p in points])
+    assert np.abs(found - expected).max() <= 1e-12 * np.abs(expected).max()  # the bar: 1e-12

@@ -9,7 +9,7 @@ from dolfinx import fem
 from signorini_cli import config
 from signorini_cli.meshing import meshes
 from signorini_cli.meshing.meshes import CONTACT
-from signorini_cli.problems import measure
+from signorini_cli.problems import contact, measure
 from signorini_cli.studies import reference
 
 # (mesh config, linear u with {u > 0} ∩ Γ_C of known measure, that measure, max of u on Γ_C)
@@ -67,8 +67,9 @@ def test_contact_force_and_errors_of_a_known_function():
     domain = meshes.build(config.Mesh("unit_square"), "bottom", 4, MPI.COMM_SELF)
     u = p1(domain, lambda x: x[0])
     ds_c = domain.ds_c(measure.ERROR_DEGREE)
-    # (1/eps) ∫_0^1 x^2 dx = 1/(3 eps): a polynomial the degree-8 quadrature integrates exactly
-    assert measure.contact_force(u, 0.5, 2.0, ds_c) == pytest.approx(2 / 3, rel=1e-12)
+    # ∫_0^1 x^2 dx = 1/3, in closed form for the P1 function
+    dofs, points = measure.contact_facet_dofs(u.function_space, domain.facet_tags, CONTACT)
+    assert contact.positive_power(u, dofs, points, 2.0) == pytest.approx(1 / 3, rel=1e-14)
     x = ufl.SpatialCoordinate(domain.mesh)
     found = measure.contact_errors(u, x[0], 0.5, 2.0, ds_c, 0.0)  # u_h = u on Γ_C: every error vanishes
     assert max(found.values()) < 1e-12

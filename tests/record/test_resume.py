@@ -51,6 +51,26 @@ def test_resume_accepts_comment_and_description_changes(tmp_path):
     assert cli.main(["run", path, "--resume"]) == cli.EXIT_OK
 
 
+def test_resume_extends_a_finished_study(tmp_path, capsys):
+    path = write_config(tmp_path)  # N = 4, 8, finished
+    assert cli.main(["run", path, "--quiet"]) == cli.EXIT_OK
+    before = rows(tmp_path)
+    with h5py.File(Path(tmp_path) / "out" / "t" / "study.h5") as h5:
+        kept = [h5[f"level_{k:02d}"].attrs["time_s"] for k in (0, 1)]
+    assert cli.main(["run", path, "--resume", "--quiet", "--set", "mesh.refinements=[4, 8, 16]"]) == cli.EXIT_OK
+    extended = rows(tmp_path)
+    with h5py.File(Path(tmp_path) / "out" / "t" / "study.h5") as h5:
+        assert [h5[f"level_{k:02d}"].attrs["time_s"] for k in (0, 1)] == kept  # read back, not solved again
+    assert extended[:2] == before
+    fresh = Path(tmp_path) / "fresh"
+    fresh.mkdir()
+    assert cli.main(["run", write_config(fresh, mesh={"refinements": [4, 8, 16]}), "--quiet"]) == cli.EXIT_OK
+    assert extended == rows(fresh)  # the rows of an uninterrupted run (timings aside)
+    # a list that does not begin with the old one is another study
+    assert cli.main(["run", path, "--resume", "--set", "mesh.refinements=[8, 16, 32]"]) == cli.EXIT_BAD_INPUT
+    assert "mesh.refinements" in capsys.readouterr().err
+
+
 def test_resume_without_results_starts_at_level_0(tmp_path):
     assert cli.main(["run", write_config(tmp_path), "--resume"]) == cli.EXIT_OK
     assert [row["level"] for row in rows(tmp_path)] == ["0", "1"]

@@ -14,9 +14,9 @@ from signorini_cli import studies
 from signorini_cli.config import names
 from signorini_cli.meshing import meshes
 from signorini_cli.meshing.meshes import DIRICHLET
-from signorini_cli.problems import compliance
+from signorini_cli.problems import compliance, measure
 from signorini_cli.record import results
-from signorini_cli.studies import stability, verification
+from signorini_cli.studies import refinement, stability, verification
 
 GAMMA_C = ["L2_gc", "rate_L2_gc", "pos_gc", "rate_pos_gc", "pos_gc_scaled", "rate_pos_gc_scaled",
            "energy_err", "rate_energy_err", "penetration", "contact_measure"]
@@ -72,3 +72,20 @@ def test_no_contact_part_no_gamma_c_columns(make_config):
     # of all measures only those that need no Γ_C are left (no differences yet on a first level)
     assert list(level.extra) == ["diff_L2", "rate_diff_L2", "diff_H1", "rate_diff_H1", "energy"]
     assert level.extra["diff_L2"] is None
+
+
+def test_contact_force_is_the_exact_integral_of_u_h(make_config):
+    # a data-only level: its contact_force against the closed form ∫_0^1 [a + (b-a)t]_+^alpha dt =
+    # (b_+^{alpha+1} - a_+^{alpha+1}) / ((alpha+1)(b-a)) on every Γ_C segment of the same u_h
+    cfg = make_config(alpha=1.5, problem={"exact": None, "f": "40*x - 16"},
+                      mesh={"refinements": [16]}, verification={"reference_refinements": 0})
+    level = refinement.solve_level(cfg, 0, 16, MPI.COMM_SELF, verifier=verification.Verifier(cfg, MPI.COMM_SELF))
+    u_h = level.solution
+    tags = meshes.build(cfg.mesh, cfg.contact, 16, MPI.COMM_SELF).facet_tags  # the level's mesh, built again
+    dofs, points = measure.contact_facet_dofs(u_h.function_space, tags, meshes.CONTACT)
+    a, b = u_h.x.array[dofs].T
+    lengths = measure.facet_sizes(points)
+    closed = np.where(np.isclose(a, b), np.maximum(a, 0) ** 1.5,
+                      (np.maximum(b, 0) ** 2.5 - np.maximum(a, 0) ** 2.5) / (2.5 * (b - a + (a == b))))
+    assert (u_h.x.array[dofs] > 0).any() and (u_h.x.array[dofs] < 0).any()  # kinks inside facets
+    assert level.extra["contact_force"] == pytest.approx(np.sum(lengths * closed) / level.eps, rel=1e-10)

@@ -1,0 +1,62 @@
+"""Problems refused before solving: data nan or infinite where the solve evaluates them, and a
+manufactured Signorini solution that violates u_S <= 0, ∂_n u_S <= 0, u_S ∂_n u_S = 0 on Γ_C."""
+import warnings
+
+import pytest
+import yaml
+from mpi4py import MPI
+
+from dolfinx import fem
+from signorini_cli.app import cli
+from signorini_cli.config import ConfigError
+from signorini_cli.meshing import meshes
+from signorini_cli.problems import compliance, posed
+from conftest import BASE, U_SIGNORINI, merge
+
+
+def check(make_config, comm, **changes):
+    cfg = make_config(**changes)
+    domain = meshes.build(cfg.mesh, cfg.contact, 8, comm)
+    eps = fem.Constant(domain.mesh, 0.1)
+    posed.check(cfg, domain, compliance.exact_solution(cfg, domain.mesh, eps), 0.1)
+
+
+@pytest.mark.parametrize("problem, message", [
+    pytest.param({"exact": "sqrt(x-0.5)*y"}, r"^problem.exact: sqrt\(x-0.5\)\*y is nan at \(", id="exact-nan"),
+    pytest.param({"exact": "x*log(x + y)"}, r"^problem.exact: x\*log\(x \+ y\) is nan at \(0, 0\)",
+                 id="exact-at-corner"),
+    pytest.param({"exact": None, "f": "sqrt(0.5 - x)"}, r"^problem.f: sqrt\(0.5 - x\) is nan at \(", id="data-f"),
+    pytest.param({"exact": "sin(2*pi*x)*(1-y)**2", "exact_solves": "signorini"},
+                 r"^problem.exact: not a Signorini solution: u_S > 0 on Γ_C, worst at \(0.25, 0\)", id="u_S-positive"),
+    pytest.param({"exact": "-x*(1+y)**2", "exact_solves": "signorini"},
+                 r"^problem.exact: not a Signorini solution: ∂_n u_S > 0 on Γ_C", id="u_S-pulls"),
+])
+def test_refused_before_solving(make_config, problem, message):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no numpy RuntimeWarning on the way: the message says it all
+        with pytest.raises(ConfigError, match=message):
+            check(make_config, MPI.COMM_SELF, problem=problem)
+
+
+@pytest.mark.parametrize("problem", [
+    pytest.param({"exact": U_SIGNORINI, "exact_solves": "signorini"}, id="signorini-solution"),
+    pytest.param({"define": {"r": "sqrt(x**2 + y**2)"}, "exact": "r**(2/3)*(1-y)"}, id="singular-gradient-at-vertex"),
+])
+def test_posed_right_passes(make_config, problem):
+    check(make_config, MPI.COMM_SELF, problem=problem)
+
+
+@pytest.mark.mpi
+def test_refused_on_every_rank(make_config):
+    assert MPI.COMM_WORLD.size == 2
+    with pytest.raises(ConfigError, match="not a Signorini solution"):
+        check(make_config, MPI.COMM_WORLD, problem={"exact": "sin(2*pi*x)*(1-y)**2", "exact_solves": "signorini"})
+
+
+def test_cli_exit_2_one_line(tmp_path, capsys):
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(merge(BASE, {"problem": {"exact": "sqrt(x-0.5)*y"},
+                                                "output": {"dir": str(tmp_path / "out")}})))
+    assert cli.main(["run", str(path)]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"signorini: error: {path}: problem.exact: sqrt(x-0.5)*y is nan at")
