@@ -685,9 +685,16 @@ def _petsc_options(raw, path):
     if not isinstance(raw, dict):
         raise ConfigError(path, "must be a mapping of PETSc option names to values")
     try:
-        return tuple(petsc.check(str(name).lstrip("-"), value) for name, value in raw.items())
+        options = tuple(petsc.check(str(name).lstrip("-"), value) for name, value in raw.items())
     except petsc.OptionError as err:
         raise ConfigError(f"{path}.{err.name}", str(err)) from None
+    names = [str(name).lstrip("-") for name in raw]
+    for i, (key, _) in enumerate(options):  # PETSc would keep one of them, silently
+        first = next(j for j, (other, _) in enumerate(options) if other == key)
+        if first < i:
+            raise ConfigError(f"{path}.{names[i]}", f"is {names[first]} again (PETSc option names are "
+                                                    "case-insensitive, the study's prefix is implied)")
+    return options
 
 
 def _continuation(raw, path):
