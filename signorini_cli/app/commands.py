@@ -13,6 +13,7 @@ from .. import config, studies
 from ..analysis import verdict
 from ..config import ConfigError
 from ..meshing import geometries
+from ..problems import contact
 from ..record import results, resume
 from ..report import plots, progress, tables
 from ..solve import preflight, solver
@@ -280,6 +281,7 @@ def _prepare(cfg, args):
     if not args.ignore_memory_check:
         resources.check_memory(cfg, MPI.COMM_WORLD)
     preflight.check_options(cfg.solver, cfg.dimension, MPI.COMM_WORLD)
+    contact.check_alpha(cfg)
     if cfg.mesh.kind == "gmsh":  # what gmsh cannot mesh is bad input, found before any level runs
         list(geometries.mesh_levels(cfg, MPI.COMM_WORLD))
     if args.resume and cfg.study_type != "refinement":

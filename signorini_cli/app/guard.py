@@ -55,6 +55,9 @@ class WriteFailed(Exception):
         self.note = ""  # where the study stood, added by Watch
 
 
+NO_ROOM = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)  # the surroundings, not a bug
+
+
 class _Signals:
     """The handler: raise Interrupted, or hold the signal back while results are being written."""
 
@@ -122,7 +125,7 @@ def supervise(body):
                 print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
             _abort_if_parallel(comm, sig.exit_status)
             return sig.exit_status
-        except WriteFailed as err:  # raised on rank 0 alone, the writer: it speaks and ends the others
+        except WriteFailed as err:  # raised on the writer (rank 0; any rank for fields): it speaks, ends the others
             print(f"signorini: error: {err}{err.note}", file=sys.stderr)
             _abort_if_parallel(comm, BAD_SURROUNDINGS)
             return BAD_SURROUNDINGS
@@ -217,6 +220,10 @@ class Watch:
             return False
         if not isinstance(err, (Exception, Interrupted)):
             return False
+        if isinstance(err, OSError) and err.errno in NO_ROOM:  # output.fields on a full disk: all ranks
+            failed = WriteFailed(self.cfg.output_dir, err)
+            self.__exit__(WriteFailed, failed, tb)
+            raise failed from err
         settle(err, self.comm)
         state = self.ending(err)
         if isinstance(err, Interrupted):
