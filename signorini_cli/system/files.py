@@ -36,6 +36,24 @@ def _temporary(path):
     return Path(tmp)
 
 
+@contextmanager
+def folder_for(folder):
+    """Within: `folder` exists (made with its missing parents); when the block fails, the folders it made
+    are removed again while empty: a failed write leaves no empty folder behind."""
+    folder = Path(folder)
+    made = [p for p in (*reversed(folder.parents), folder) if not p.exists()]
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        yield folder
+    except BaseException:
+        for path in reversed(made):
+            try:
+                path.rmdir()
+            except OSError:
+                break
+        raise
+
+
 def overwrite(path, text):
     """Write `text` over path in place: the last resort on a full disk, where a temporary copy finds no
     room but the file's own blocks, freed by the truncation, hold a line."""
