@@ -62,7 +62,7 @@ def whole(tmp_path_factory):
 
 def signal_at_level(monkeypatch, level, signum):
     """Deliver `signum` to this process as `level` starts solving (after the earlier ones are written)."""
-    solve = studies.solve_level
+    solve = refinement_study.solve_level
 
     def solve_or_signal(cfg, index, n, *args):
         if index == level:

@@ -17,6 +17,7 @@ from signorini_cli import studies
 from signorini_cli.app import cli
 from signorini_cli.problems import contact
 from signorini_cli.solve import solver, strategies
+from signorini_cli.studies import refinement
 from conftest import BASE, merge
 
 NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature point with x < 0.5
@@ -271,7 +272,7 @@ def test_condition_estimate_matches_dense_eigenvalues(make_config, monkeypatch):
     problem = solved_problem(cfg, monkeypatch)
     lam_min, lam_max = solver.condition_estimate(problem.J, problem.bcs, MPI.COMM_SELF, contact=problem.contact)
     A = fem_petsc.assemble_matrix(fem.form(problem.J), bcs=problem.bcs)
-    problem.contact.add_jacobian(A, contact.dirichlet_mask(problem.u_h.function_space, problem.bcs))
+    problem.contact.add_jacobian(A, solver.dirichlet_mask(problem.u_h.function_space, problem.bcs))
     A.assemble()
     free = np.setdiff1d(np.arange(A.getSize()[0]), problem.bcs[0].dof_indices()[0])
     eigenvalues = scipy.linalg.eigvalsh(A.convert("dense").getDenseArray()[np.ix_(free, free)])
@@ -289,7 +290,7 @@ def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
         return original(solver_cfg, problem, previous, monitor, phases)
 
     monkeypatch.setattr(strategies, "solve", spy)
-    studies.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
+    refinement.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
     return seen[-1]
 
 
