@@ -160,7 +160,7 @@ def test_lock_of_a_killed_run_is_no_obstacle(tmp_path):
     """kill -9 of the holder: the kernel drops its flock, the next run goes ahead."""
     config, out = write_config(tmp_path), tmp_path / "out"
     holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from mpi4py import MPI; "
-                               "from signorini_cli import guard; guard.FolderLock(sys.argv[1], MPI.COMM_WORLD); "
+                               "from signorini_cli.app import guard; guard.FolderLock(sys.argv[1], MPI.COMM_WORLD); "
                                "print('held', flush=True); time.sleep(600)", str(out / "t")],
                               stdout=subprocess.PIPE, text=True)
     assert holder.stdout.readline() == "held\n"
