@@ -347,7 +347,11 @@ def loads(text, overrides=(), folder=None, options=()):
         raise ConfigError("", "the config must be a YAML mapping of keys to values")
     for item in overrides:
         apply_override(raw, item)
-    for name, value in options:
+    for name, value in options:  # the command line wins over the file, however either spells the option
+        written = (raw.get("solver") or {}).get("petsc_options") if isinstance(raw.get("solver"), dict) else None
+        if isinstance(written, dict):
+            for key in [k for k in written if petsc.canonical(k) == petsc.canonical(name)]:
+                del written[key]
         set_path(raw, f"solver.petsc_options.{name}", value)
     return dataclasses.replace(from_dict(raw, folder), text=text)
 

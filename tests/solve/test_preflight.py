@@ -96,3 +96,11 @@ def test_petsc_error_in_a_solve_is_bad_input():
         with preflight.petsc_errors(" in a test"):
             ksp.solve(b, b.duplicate())
     ksp.destroy()
+
+
+@pytest.mark.fast
+def test_command_line_option_wins_over_the_files_however_spelt(tmp_path):
+    """`-SNES_MAX_IT 5` on the command line replaces the file's snes_max_it: 3 (PETSc would read one of them)."""
+    path = write(tmp_path, solver={"petsc_options": {"snes_max_it": 3, "ksp_rtol": 1e-8}})
+    cfg = config.load(path, options=[("SNES_MAX_IT", "5")])
+    assert dict(cfg.solver.petsc_options) == {"ksp_rtol": "1e-08", "snes_max_it": "5"}
