@@ -180,9 +180,9 @@ def _run_command(args):
     with lock:
         try:
             _check_output(cfg, args.force or args.resume)
-            if args.force and not args.resume and MPI.COMM_WORLD.rank == 0:
-                start_over(cfg.output_dir)  # under the lock: no other run writes there
             done = _prepare(cfg, args)
+            if args.force and not args.resume and MPI.COMM_WORLD.rank == 0:
+                start_over(cfg.output_dir)  # under the lock (no other run writes there), once nothing refuses
         except (ConfigError, yaml.YAMLError, OSError) as err:
             return fail(args.config, err)
         try:

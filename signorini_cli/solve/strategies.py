@@ -102,15 +102,16 @@ def checked(newton, problem, outcome):
     options = {key: value for key, value in options.items() if key.startswith(("ksp_", "pc_"))}
     stol = newton.cfg.stol or solver.POLISH_TOL
     previous = None
-    for taken in range(EXACT_STEPS + 1):
-        delta, size, unorm = newton.snes.exact_correction(options)
-        small = size <= solver.POLISH_TOL * unorm
-        floor = previous is not None and size <= stol * unorm and size >= solver.POLISH_STALL * previous
-        if small or floor or delta is None or taken == EXACT_STEPS:
-            break
-        newton.snes.take(delta)
-        delta.destroy()
-        previous = size
+    with newton.snes.phases("newton"):
+        for taken in range(EXACT_STEPS + 1):
+            delta, size, unorm = newton.snes.exact_correction(options)
+            small = size <= solver.POLISH_TOL * unorm
+            floor = previous is not None and size <= stol * unorm and size >= solver.POLISH_STALL * previous
+            if small or floor or delta is None or taken == EXACT_STEPS:
+                break
+            newton.snes.take(delta)
+            delta.destroy()
+            previous = size
     if delta is not None:
         delta.destroy()
     return _checked_outcome(outcome, taken, small or floor, size / unorm if unorm > 0 else size)

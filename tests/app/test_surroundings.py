@@ -174,3 +174,12 @@ def test_three_ranks_on_eight_cells(tmp_path):
     # the serial run's L2 at N = 4 (measured): 0.08178394346517615
     assert [float(r["L2"]) for r in rows(tmp_path / "out" / "t")] == pytest.approx(
         [SERIAL_L2[2], 0.08178394346517615], rel=1e-12)
+
+
+def test_refused_forced_run_keeps_the_old_results(tmp_path, capsys):
+    """--force with a config refused before any solve (an option PETSc rejects) removes nothing."""
+    study = old_study(tmp_path)
+    config = write_config(tmp_path, solver={"petsc_options": {"pc_type": "spai"}})  # not in this PETSc
+    assert cli.main(["run", config, "--force", "--quiet"]) == cli.EXIT_BAD_INPUT
+    assert "Unable to find requested PC type spai" in capsys.readouterr().err
+    assert (study / "rates.md").read_text() == "old\n" and (study / "convergence.png").exists()
