@@ -222,7 +222,7 @@ def test_file_without_contact_group_is_config_error(tmp_path):
 # --- gmsh stays out of built-in meshes; MPI ---------------------------------------------------------
 
 def test_builtin_mesh_does_not_import_gmsh(tmp_path):
-    script = ("import sys, yaml; from mpi4py import MPI; from signorini_cli import config, study; "
+    script = ("import sys, yaml; from mpi4py import MPI; from signorini_cli import config, studies; "
               f"cfg = config.loads(yaml.safe_dump({dict(BASE, mesh={'kind': 'unit_square', 'refinements': [2]})!r})); "
               "studies.run_study(cfg, comm=MPI.COMM_SELF); print('gmsh' in sys.modules)")
     env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}

@@ -148,7 +148,7 @@ def test_single_level_study_plots_without_triangles(tmp_path):
 def test_run_without_plots_never_imports_matplotlib(tmp_path):
     cfg = tmp_path / "c.yaml"
     cfg.write_text(yaml.safe_dump(merge(BASE, {"output": {"dir": str(tmp_path), "plots": False}})))
-    code = ("import sys; from signorini_cli import cli; code = cli.main(['run', sys.argv[1], '--quiet']); "
+    code = ("import sys; from signorini_cli.app import cli; code = cli.main(['run', sys.argv[1], '--quiet']); "
             "assert 'matplotlib' not in sys.modules, 'matplotlib imported'; sys.exit(code)")
     done = subprocess.run([sys.executable, "-c", code, str(cfg)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

@@ -14,10 +14,10 @@ from mpi4py import MPI
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from signorini_cli import studies
+from signorini_cli.studies import refinement as refinement_study
 from signorini_cli.app import cli
 from signorini_cli.problems import contact
 from signorini_cli.solve import solver, strategies
-from signorini_cli.studies import refinement
 from conftest import BASE, merge
 
 NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature point with x < 0.5
@@ -290,7 +290,7 @@ def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
         return original(solver_cfg, problem, previous, monitor, phases)
 
     monkeypatch.setattr(strategies, "solve", spy)
-    refinement.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
+    refinement_study.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
     return seen[-1]
 
 
