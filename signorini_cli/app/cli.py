@@ -1,11 +1,29 @@
 """Command line: `signorini run CONFIG.yaml [--output DIR] [--set KEY=VALUE ...] [--force] [--resume]
 [-petsc_option [value] ...]`; check, init, list, report and compare."""
+import os
 import sys
+
+
+def open_closed_descriptors():
+    """A standard descriptor closed at start (`signorini run cfg >&-`) is opened on /dev/null before MPI or
+    a results file can take its number (the printing would go into that file)."""
+    for fd, name in ((0, "stdin"), (1, "stdout"), (2, "stderr")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            os.open(os.devnull, os.O_RDWR)  # the lowest free descriptor: fd itself
+        if getattr(sys, name) is None:  # Python saw it closed as it started; modules (ufl) expect a stream
+            setattr(sys, name, open(fd, "r" if fd == 0 else "w", closefd=False))
+
+
+open_closed_descriptors()
 
 try:  # Ctrl-C while the modules load (MPI starts with commands' imports): one line, no traceback
     import argparse
     import logging
     import re
+
+    from mpi4py import MPI
 
     from .. import __version__, config
     from ..config import ConfigError
@@ -22,8 +40,18 @@ PETSC_HELP = ("PETSc options such as -snes_monitor or -ksp_rtol 1e-8 may follow 
               "solver.petsc_options, under the study's prefix")
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, with its errors as every bad input of signorini: one line, exit 2 (not the usage)."""
+
+    def error(self, message):
+        if MPI.COMM_WORLD.rank == 0:
+            print(f"signorini: error: command line: {' '.join(message.split())} (see `{self.prog} --help`)",
+                  file=sys.stderr)
+        sys.exit(EXIT_BAD_INPUT)
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(prog="signorini", description=DESCRIPTION,
+    parser = Parser(prog="signorini", description=DESCRIPTION,
                                      epilog=f"Config keys: {config.DOCS}; `signorini init` prints every key "
                                             "with its default.")
     parser.add_argument("--version", action=_Version)
@@ -34,8 +62,9 @@ def build_parser():
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override a config key, e.g. --set epsilon.theta=10 (repeatable)")
     run.add_argument("--force", action="store_true",
-                     help="overwrite existing results of this study; run even when the finest level looks too "
-                          "big for the memory")
+                     help="start over: the study's existing results (tables, figures, fields) are removed")
+    run.add_argument("--ignore-memory-check", action="store_true",
+                     help="run even when the finest level looks too big for the available memory")
     run.add_argument("--resume", action="store_true", help="continue an interrupted study from its first "
                                                            "unfinished level (the config must be unchanged)")
     noise = run.add_mutually_exclusive_group()
@@ -124,6 +153,9 @@ def main(argv=None):
             return commands.fail(next((t for t in argv[1:] if not t.startswith("-")), "command line"), err)
     args = build_parser().parse_args(argv)
     args.petsc_options = options
+    if getattr(args, "output", None) is not None and not args.output.strip():
+        return commands.fail(getattr(args, "config", None) or getattr(args, "path", None) or "command line",
+                             ConfigError("--output", "is empty; give a folder (or leave --output out)"))
     setup_logging()
     guard.raise_on_closed_pipes()  # PETSc, initialised as the commands' modules load, traps SIGPIPE
     if args.command == "init":
@@ -145,6 +177,7 @@ def setup_logging(level=logging.WARNING):
 def entry():
     """The console script: main(), and for a bug its traceback and exit status 3 (guard.CRASH_STATUS),
     apart from 1 (a level did not converge) and 2 (bad input)."""
+    guard.forgiving_streams()  # output that cannot be printed does not stop a study
     try:
         return main()
     except KeyboardInterrupt:  # before the handlers of guard.supervise are in place (MPI starting)

@@ -14,9 +14,10 @@ from .. import config, studies
 from ..analysis import verdict
 from ..config import ConfigError
 from ..meshing import geometries
+from ..problems import contact
 from ..record import results, resume
 from ..report import plots, progress, tables
-from ..solve import solver
+from ..solve import preflight, solver
 from ..system import errors
 from . import guard, resources
 
@@ -206,11 +207,14 @@ def _run_command(args):
         try:
             _check_output(cfg, args.force or args.resume)
             done = _prepare(cfg, args)
+            if args.force and not args.resume and MPI.COMM_WORLD.rank == 0:
+                start_over(cfg.output_dir)  # under the lock (no other run writes there), once nothing refuses
         except (ConfigError, yaml.YAMLError, OSError) as err:
             return fail(args.config, err)
         try:
             return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
-        except ConfigError as err:  # a problem the first level refuses before solving (problems/posed.py)
+        except ConfigError as err:  # refused before solving: a problem not posed right (problems/posed.py), or an
+            # option PETSc rejects only in a real solve (on every rank)
             return fail(args.config, err)
 
 
@@ -299,12 +303,30 @@ def init(args):
 
 
 def _prepare(cfg, args):
-    """The finished levels to continue from (--resume), once the finest level fits in memory."""
-    if not args.force:
+    """The finished levels to continue from (--resume), once the finest level fits in memory and PETSc took
+    the user's options on a small system."""
+    if not args.ignore_memory_check:
         resources.check_memory(cfg, MPI.COMM_WORLD)
+    preflight.check_options(cfg.solver, cfg.dimension, MPI.COMM_WORLD)
+    contact.check_alpha(cfg)
     if cfg.mesh.kind == "gmsh":  # what gmsh cannot mesh is bad input, found before any level runs
         list(geometries.mesh_levels(cfg, MPI.COMM_WORLD))
     return resume.finished_levels(cfg, MPI.COMM_WORLD) if args.resume else []
+
+
+# what a run writes into its study folder (record.results, report.tables and plots, studies.fields)
+RESULT_FILES = ("*.csv", "*.h5", "*.md", "*.tex", "*.png", "*.pdf", "status.txt", "fields/*.xdmf", "fields/*.h5")
+
+
+def start_over(folder):
+    """Remove a study's old results (--force): the new run's tables and figures never sit beside the old
+    ones, also when it is interrupted. Only the files a run writes, in case the folder holds others."""
+    for pattern in RESULT_FILES:
+        for path in Path(folder).glob(pattern):
+            path.unlink()
+    fields = Path(folder) / "fields"
+    if fields.is_dir() and not any(fields.iterdir()):
+        fields.rmdir()
 
 
 def _check_output(cfg, force):

@@ -1,8 +1,9 @@
-"""Faults around a study: SIGINT/SIGTERM end it cleanly, an exception on one rank ends every rank,
-a study folder is written by one run at a time, a closed stdout ends output quietly, and the study's
-status is kept on disk next to its results."""
+"""Faults around a study: SIGINT/SIGTERM/SIGHUP end it cleanly, an exception on one rank ends every rank,
+a study folder is written by one run at a time, output streams that fail end output quietly, a form
+compilation is never cut short, and the study's status is kept on disk next to its results."""
 import errno
 import fcntl
+import functools
 import logging
 import os
 import signal
@@ -21,7 +22,7 @@ from ..system import errors, files
 
 logger = logging.getLogger(__name__)
 
-SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)  # SIGHUP: the terminal or the session went away
 # A rank other than 0 waits this long before it reports a fault: when rank 0 has the same fault it
 # reports it alone (its MPI abort ends the others first). Below Open MPI's 1 s between the SIGTERM
 # mpirun forwards on Ctrl-C and its SIGKILL.
@@ -31,7 +32,7 @@ BAD_SURROUNDINGS = 2  # as bad input: the results could not be written (a full d
 
 
 class Interrupted(BaseException):
-    """SIGINT or SIGTERM arrived. A BaseException, as KeyboardInterrupt: `except Exception` lets it by."""
+    """SIGINT, SIGTERM or SIGHUP arrived. A BaseException, as KeyboardInterrupt: `except Exception` lets it by."""
 
     def __init__(self, signum):
         super().__init__(signal.Signals(signum).name)
@@ -40,7 +41,7 @@ class Interrupted(BaseException):
 
     @property
     def exit_status(self):
-        return 128 + self.signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM
+        return 128 + self.signum  # the shell's convention: 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP
 
 
 class WriteFailed(Exception):
@@ -50,6 +51,9 @@ class WriteFailed(Exception):
         super().__init__(f"{folder}: cannot write the results: {err.strerror or err}")
         self.reason = err.strerror or str(err)
         self.note = ""  # where the study stood, added by Watch
+
+
+NO_ROOM = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS)  # the surroundings, not a bug
 
 
 class _Signals:
@@ -68,9 +72,17 @@ class _Signals:
 _signals = _Signals()
 
 
+def _release():
+    """Leave a block that held signals back; the held signal once the outermost block is left."""
+    _signals.holding -= 1
+    signum = None if _signals.holding else _signals.pending
+    _signals.pending = _signals.pending if _signals.holding else None
+    return signum
+
+
 @contextmanager
 def interruptible():
-    """Within: SIGINT and SIGTERM raise Interrupted (between Python statements, so also inside
+    """Within: SIGINT, SIGTERM and SIGHUP raise Interrupted (between Python statements, so also inside
     PETSc's callbacks); the previous handlers are restored after."""
     try:
         previous = {sig: signal.signal(sig, _signals.handle) for sig in SIGNALS}
@@ -92,19 +104,17 @@ def deferred(drop=False):
     try:
         yield
     finally:  # with an exception on its way out, a held signal is dropped: the study is ending anyway
-        _signals.holding -= 1
-        signum = None if _signals.holding else _signals.pending
-        _signals.pending = _signals.pending if _signals.holding else None
+        signum = _release()
     if signum is not None and not drop:
         raise Interrupted(signum)
 
 
 def supervise(body):
-    """body() -> exit status, with SIGINT/SIGTERM as Interrupted. An interruption prints one line and
+    """body() -> exit status, with SIGINT/SIGTERM/SIGHUP as Interrupted. An interruption prints one line and
     gives 128 + signal. On several ranks any fault ends every rank (MPI abort) instead of leaving the
     others waiting in a collective; a bug's traceback is printed once."""
     comm = MPI.COMM_WORLD
-    with interruptible():
+    with interruptible(), compiling_whole():
         try:
             return body()
         except Interrupted as sig:
@@ -113,7 +123,7 @@ def supervise(body):
                 print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
             _abort_if_parallel(comm, sig.exit_status)
             return sig.exit_status
-        except WriteFailed as err:  # raised on rank 0 alone, the writer: it speaks and ends the others
+        except WriteFailed as err:  # raised on the writer (rank 0; any rank for fields): it speaks, ends the others
             errors.print_error("", f"{err}{err.note}")
             _abort_if_parallel(comm, BAD_SURROUNDINGS)
             return BAD_SURROUNDINGS
@@ -208,6 +218,10 @@ class Watch:
             return False
         if not isinstance(err, (Exception, Interrupted)):
             return False
+        if isinstance(err, OSError) and err.errno in NO_ROOM:  # output.fields on a full disk: all ranks
+            failed = WriteFailed(self.cfg.output_dir, err)
+            self.__exit__(WriteFailed, failed, tb)
+            raise failed from err
         settle(err, self.comm)
         state = self.ending(err)
         if isinstance(err, Interrupted):
@@ -338,6 +352,87 @@ def stdout_may_close():
 
 def stdout_to_devnull():
     """Point stdout at /dev/null: what is still buffered for a closed pipe goes nowhere, quietly."""
+    to_devnull(sys.stdout.fileno())
+
+
+class Forgiving:
+    """A text stream whose failed writes (its reader gone, a full disk, a closed descriptor, a hung-up
+    terminal) are dropped: output that cannot be printed neither stops nor fails a study. After the first
+    failure its descriptor points at /dev/null, so that later writes, PETSc's among them, and the flush at
+    exit succeed."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text):
+        try:
+            return self.stream.write(text)
+        except (OSError, ValueError):  # ValueError: the stream was closed
+            self._drop()
+            return len(text)
+
+    def flush(self):
+        try:
+            self.stream.flush()
+        except (OSError, ValueError):
+            self._drop()
+
+    def _drop(self):
+        try:
+            to_devnull(self.stream.fileno())
+            self.stream.flush()  # what it still buffers goes to /dev/null now
+        except (OSError, ValueError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
+def forgiving_streams():
+    """stdout and stderr as Forgiving streams."""
+    for name in ("stdout", "stderr"):
+        if not isinstance(getattr(sys, name), Forgiving):
+            setattr(sys, name, Forgiving(getattr(sys, name)))
+
+
+def to_devnull(fd):
+    """Point descriptor `fd` at /dev/null."""
     devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, sys.stdout.fileno())
+    os.dup2(devnull, fd)
     os.close(devnull)
+
+
+# --- form compilation ----------------------------------------------------------------------------
+
+@contextmanager
+def compiling_whole():
+    """Within: a signal waits while FFCx compiles a form (dolfinx.jit.ffcx_jit), and interrupts the run
+    right after. FFCx claims a form's entry in its cache (~/.cache/fenics) with an empty .c file and cleans
+    up only after an Exception: a run interrupted while compiling left the claim, and every later run of
+    that form waited 10 s for it and failed. A compilation takes seconds."""
+    from dolfinx import jit
+    original = jit.ffcx_jit
+
+    @functools.wraps(original)
+    def ffcx_jit(*args, **kwargs):
+        _signals.holding += 1
+        try:
+            compiled = original(*args, **kwargs)
+        except Exception:  # Ctrl-C reaches the compiler too: then the signal is the cause
+            signum = _release()
+            if signum is not None:
+                raise Interrupted(signum) from None
+            raise
+        except BaseException:
+            _release()
+            raise
+        signum = _release()
+        if signum is not None:
+            raise Interrupted(signum)
+        return compiled
+
+    jit.ffcx_jit = ffcx_jit
+    try:
+        yield
+    finally:
+        jit.ffcx_jit = original

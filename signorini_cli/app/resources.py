@@ -45,7 +45,7 @@ def needed_bytes(dofs, nonzeros, ranks):
 def check_memory(cfg, comm):
     """ConfigError (naming the key of the levels) on every rank when the finest level, with its reference
     solution for a data-only scene, would need more memory than the nodes of `comm` have available.
-    --force skips the check."""
+    --ignore-memory-check skips the check."""
     peak = peak_meshes(cfg, comm)
     if peak is None:
         return
@@ -56,7 +56,8 @@ def check_memory(cfg, comm):
         meshes = " and ".join(label for label, _, _ in peak)
         raise ConfigError(f"mesh.{cfg.mesh.level_key}",
                           f"{what} ({meshes}: {dofs:,} dofs, {nonzeros:,} Jacobian nonzeros) needs about "
-                          f"{_gb(need)} of memory, more than the {_gb(have)} available; use --force to run it anyway")
+                          f"{_gb(need)} of memory, more than the {_gb(have)} available; use --ignore-memory-check to run it "
+                          "anyway")
 
 
 def peak_meshes(cfg, comm):

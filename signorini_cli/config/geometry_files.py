@@ -31,7 +31,8 @@ def physical_groups(path):
     or a .msh file (its $PhysicalNames section)."""
     path = Path(path)
     if path.suffix == ".geo":
-        return {name: _GEO_DIMS[kind] for kind, name in _GEO_GROUP.findall(path.read_text())}
+        # a binary file is no .geo: read as text it names no group, which the caller reports
+        return {name: _GEO_DIMS[kind] for kind, name in _GEO_GROUP.findall(path.read_text(errors="replace"))}
     return _msh_physical_names(path.read_bytes())
 
 

@@ -354,7 +354,11 @@ def loads(text, overrides=(), folder=None, options=()):
         raise ConfigError("", "the config must be a YAML mapping of keys to values")
     for item in overrides:
         apply_override(raw, item)
-    for name, value in options:
+    for name, value in options:  # the command line wins over the file, however either spells the option
+        written = (raw.get("solver") or {}).get("petsc_options") if isinstance(raw.get("solver"), dict) else None
+        if isinstance(written, dict):
+            for key in [k for k in written if petsc.canonical(k) == petsc.canonical(name)]:
+                del written[key]
         set_path(raw, f"solver.petsc_options.{name}", value)
     return dataclasses.replace(from_dict(raw, folder), text=text)
 
@@ -705,9 +709,16 @@ def _petsc_options(raw, path):
     if not isinstance(raw, dict):
         raise ConfigError(path, "must be a mapping of PETSc option names to values")
     try:
-        return tuple(petsc.check(str(name).lstrip("-"), value) for name, value in raw.items())
+        options = tuple(petsc.check(str(name).lstrip("-"), value) for name, value in raw.items())
     except petsc.OptionError as err:
         raise ConfigError(f"{path}.{err.name}", str(err)) from None
+    names = [str(name).lstrip("-") for name in raw]
+    for i, (key, _) in enumerate(options):  # PETSc would keep one of them, silently
+        first = next(j for j, (other, _) in enumerate(options) if other == key)
+        if first < i:
+            raise ConfigError(f"{path}.{names[i]}", f"is {names[first]} again (PETSc option names are "
+                                                    "case-insensitive, the study's prefix is implied)")
+    return options
 
 
 def _continuation(raw, path):

@@ -68,7 +68,8 @@ def cell_diameters(msh, chunk=1 << 16):
     tdim = msh.topology.dim
     owned = msh.topology.index_map(tdim).size_local
     dofmap = msh.geometry.dofmap
-    vertices = dofmap.array.reshape(dofmap.num_nodes, -1)[:owned, :tdim + 1]
+    width = dofmap.offsets[1] if dofmap.num_nodes else tdim + 1  # a rank may own no cell of a tiny mesh
+    vertices = dofmap.array.reshape(dofmap.num_nodes, width)[:owned, :tdim + 1]
     pairs = [(i, j) for i in range(tdim + 1) for j in range(i + 1, tdim + 1)]
     diameters = np.empty(owned)
     for start in range(0, owned, chunk):

@@ -65,8 +65,8 @@ def mesh_file(geo, size, dim, cache_dir="", comm=MPI.COMM_WORLD):
         path = geometry_files.cache_file(cache_dir, geo, size)
         if path.exists():
             return path, False
-        path.parent.mkdir(parents=True, exist_ok=True)
-        files.replace(path, lambda tmp: child.in_child(generate, geo, size, dim, tmp))  # signals end it
+        with files.folder_for(path.parent):  # gmsh failing on a garbage .geo leaves no empty cache folder
+            files.replace(path, lambda tmp: child.in_child(generate, geo, size, dim, tmp))  # signals end it
         logger.info("meshed %s at size %g: %s", geo, size, path)
         return path, True
     return _on_rank0(comm, work, f"meshing {geo} at size {size:g}")

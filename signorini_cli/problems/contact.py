@@ -8,10 +8,26 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from scipy import special
 
+from ..config import ConfigError
 from . import measure
 
 SERIES_SPREAD = 0.25  # series about the mean value c when every |u_j - c| <= c/4: terms shrink like 4^-j
 SERIES_TERMS = 32  # C(j+4, 4) 4^-j < 1e-14 from j = 32 on (at most 5 points in a divided difference)
+# the exact rule integrates the data term [u_ex]_+^alpha by Gauss-Jacobi with the weight |t|^alpha, whose
+# weights carry 2^-(alpha+1) (scipy.special.roots_jacobi, _pieces): out of double range from alpha = 1023 on
+ALPHA_MAX = 1022.0
+
+
+def check_alpha(cfg):
+    """ConfigError when contact_quadrature: exact cannot integrate [u]_+^alpha (ALPHA_MAX), before any solve."""
+    if cfg.contact_quadrature != "exact" or cfg.study_type == "signorini":
+        return
+    for path, values in (("alpha", (cfg.alpha,)), ("limit.alpha", cfg.limit.alpha if cfg.limit else ())):
+        for alpha in values:
+            if alpha > ALPHA_MAX:
+                raise ConfigError(path, f"{alpha:g} is above {ALPHA_MAX:g}, the largest alpha contact_quadrature: "
+                                        "exact integrates (its Gauss-Jacobi weights carry 2^-(alpha+1)); use "
+                                        "contact_quadrature: vertex or a Gauss degree")
 
 
 # --- exact means over a simplex of psi(l) lambda^m, psi(t) = t_+^beta, l linear ------------------------

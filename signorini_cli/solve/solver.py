@@ -295,6 +295,41 @@ class NewtonSolver:
             return False
         return self._test.step_small(self._direction, self.x.norm())
 
+    def exact_correction(self, options):
+        """(delta, ||delta||, ||u||) for Newton's exact correction delta = J(u)^{-1} F(u) at the final iterate,
+        solved by a fresh KSP with `options` (the study's own linear solver, not the user's options): to first
+        order the algebraic error of u, whichever solver produced u. ||delta|| is inf (delta None) when that
+        linear solve fails."""
+        b, delta = self.b.duplicate(), self.x.duplicate()
+        with self.phases("assemble_residual"):
+            self.assemble_residual(self.x, b)  # leaves x in u, where the Jacobian is assembled
+        with self.phases("assemble_jacobian"):
+            self.assemble_jacobian(self.A)
+        ksp = PETSc.KSP().create(self.u.function_space.mesh.comm)
+        prefix = f"{self.prefix}exact_"
+        _set_options(prefix, options)
+        ksp.setOptionsPrefix(prefix)
+        ksp.setFromOptions()
+        ksp.setOperators(self.A)
+        delta.set(0.0)
+        ksp.solve(b, delta)
+        solved = ksp.getConvergedReason() > 0
+        for key in [key for key in PETSc.Options().getAll() if key.startswith(prefix)]:
+            PETSc.Options().delValue(key)
+        for obj in (ksp, b):
+            obj.destroy()
+        norm = delta.norm() if solved else math.inf
+        if not solved or not math.isfinite(norm):
+            delta.destroy()
+            return None, math.inf, self.x.norm()
+        return delta, norm, self.x.norm()
+
+    def take(self, delta):
+        """u <- u - delta: a full Newton step from the final iterate (exact_correction)."""
+        self.x.axpy(-1.0, delta)
+        self.x.copy(self.u.vector)
+        self.u.x.scatter_forward()
+
     def _set_trust_radius(self):
         """PETSc starts newtontr with radius delta0 * ||u_0||, degenerate from u_0 = 0 (round-off
         on Γ_D makes it 1e-17): scale delta0 so the radius is TR_RADIUS * max(||u_0||, sqrt(dofs))."""

@@ -11,13 +11,18 @@ from dataclasses import dataclass
 from dolfinx import fem
 
 from ..system.timing import Phases
-from . import solver
+from . import preflight, solver
 from .transfer import transfer
 
 logger = logging.getLogger(__name__)
 EASY_ITS = 3  # a continuation step that took at most this many Newton iterations was easy
 MAX_FACTOR = 0.9  # a continuation step shrunk beyond eps_{k+1}/eps_k = 0.9 is not worth taking
 DIVERGED_CONTINUATION = "DIVERGED_MAX_CONTINUATION_STEPS"
+# the residual check (checked): at most this many exact Newton steps after a solve that passed the success test.
+# From an iterate with error e ||u||, exact Newton leaves ~e^2: from 1e-2 to below POLISH_TOL in 4 steps
+EXACT_STEPS = 5
+CONVERGED_EXACT = "CONVERGED_EXACT_NEWTON"  # the success test passed, but only exact Newton steps reached the root
+DIVERGED_EXACT = "DIVERGED_EXACT_NEWTON"  # ... and exact Newton steps from its iterate did not converge
 
 
 @dataclass(frozen=True)
@@ -48,7 +53,7 @@ def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
     sees every Newton iteration of every solve; `phases` (timing.Phases) gets the solve's times and,
     with solver.linear_floor, the level's linear floor (Outcome.floor_s)."""
     with newton_for(solver_cfg, problem, monitor, phases) as newton:
-        outcome = STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg)
+        outcome = checked(newton, problem, STRATEGIES[solver_cfg.strategy](newton, problem, previous, solver_cfg))
         if solver_cfg.linear_floor and outcome.converged:
             outcome = dataclasses.replace(outcome, floor_s=newton.snes.linear_floor())
         return outcome
@@ -71,7 +76,7 @@ def descend(newton, problem, eps, solver_cfg, solved_eps):
     u_h ends as the last solution that converged. Returns the Outcome."""
     problem.eps.value = eps
     guess = problem.u_h.x.array.copy()
-    first = newton.run(eps)
+    first = checked(newton, problem, newton.run(eps))
     if first.converged or solver_cfg.strategy not in ("continuation", "auto"):
         if not first.converged:
             _restore(problem.u_h, guess)
@@ -79,7 +84,49 @@ def descend(newton, problem, eps, solver_cfg, solved_eps):
     _restore(problem.u_h, guess)
     settings = dataclasses.replace(solver_cfg.continuation, start=solved_eps)
     reached = continue_eps(newton, dataclasses.replace(problem, eps_target=eps), settings)
-    return combine([first, reached])
+    return combine([first, checked(newton, problem, reached)])
+
+
+def checked(newton, problem, outcome):
+    """The residual check of a solve that passed the success test: the exact Newton correction at its
+    iterate (a direct solve, or CG + AMG to linear_rtol, never the user's PETSc options) must be at most
+    POLISH_TOL ||u_h||, where the algebraic error of every reported quantity is below 1e-6 of it (see
+    solver.POLISH_TOL). The success test sees only the iterates' own steps, and a stationary or one-sweep
+    linear solver, a damped line search or a lagged Jacobian makes small steps far from the root. Else exact
+    Newton steps follow, up to EXACT_STEPS, until the correction passes or stalls at its round-off floor
+    (below stol ||u_h||, no longer halving: the polish's rule); the Outcome says how many it took."""
+    if not outcome.converged or problem.bounds is not None:  # the VI: PETSc's test on its reduced residual
+        return outcome
+    own = dataclasses.replace(newton.cfg, petsc_options=())
+    options = solver.petsc_options(own, problem.dim, linear=newton.linear, dofs=newton.dofs)
+    options = {key: value for key, value in options.items() if key.startswith(("ksp_", "pc_"))}
+    stol = newton.cfg.stol or solver.POLISH_TOL
+    previous = None
+    with newton.snes.phases("newton"):
+        for taken in range(EXACT_STEPS + 1):
+            delta, size, unorm = newton.snes.exact_correction(options)
+            small = size <= solver.POLISH_TOL * unorm
+            floor = previous is not None and size <= stol * unorm and size >= solver.POLISH_STALL * previous
+            if small or floor or delta is None or taken == EXACT_STEPS:
+                break
+            newton.snes.take(delta)
+            delta.destroy()
+            previous = size
+    if delta is not None:
+        delta.destroy()
+    return _checked_outcome(outcome, taken, small or floor, size / unorm if unorm > 0 else size)
+
+
+def _checked_outcome(outcome, taken, passed, correction):
+    """The Outcome after `taken` exact Newton steps; `correction`: the last exact correction / ||u_h||."""
+    if taken == 0 and passed:
+        return dataclasses.replace(outcome, correction=correction)
+    reason = (CONVERGED_EXACT if passed else DIVERGED_EXACT) if taken else DIVERGED_EXACT
+    logger.info("the success test passed at an iterate %.2e ||u_h|| from the root: %d exact Newton step(s) %s",
+                correction, taken, "reached it" if passed else "did not")
+    steps = outcome.steps + ((outcome.steps[-1][0] if outcome.steps else None, taken, reason),)
+    return dataclasses.replace(outcome, converged=passed, reason=reason, newton_its=outcome.newton_its + taken,
+                               correction=correction, steps=steps)
 
 
 def plain(newton, problem, previous, solver_cfg):
@@ -217,8 +264,9 @@ class Newton:
             initial_guess(self.problem.u_h, previous)
 
     def run(self, eps):
-        """One SNES solve at `eps` from the current u_h (with a fallback solve: both timed as 'newton')."""
-        with self.snes.phases("newton"):
+        """One SNES solve at `eps` from the current u_h (with a fallback solve: both timed as 'newton'); a PETSc
+        error (an option PETSc accepted on the trial system of preflight but not here) is bad input."""
+        with self.snes.phases("newton"), preflight.petsc_errors(f" in the solve at eps={eps}"):
             return self._run(eps)
 
     def _run(self, eps):

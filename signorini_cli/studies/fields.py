@@ -5,6 +5,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from ..meshing.meshes import CONTACT
+from ..system import files
 
 
 def write(folder, index, domain, u_h, u_exact):
@@ -15,7 +16,7 @@ def write(folder, index, domain, u_h, u_exact):
     path = folder / "fields" / f"level_{index:02d}.xdmf"
     path.parent.mkdir(parents=True, exist_ok=True)  # every rank: exist_ok makes the race harmless
     msh.comm.barrier()
-    with io.XDMFFile(msh.comm, str(path), "w") as xdmf:
+    with files.library_writes(path), io.XDMFFile(msh.comm, str(path), "w") as xdmf:  # a full disk: OSError
         xdmf.write_mesh(msh)
         domain.facet_tags.name = "boundary"
         xdmf.write_meshtags(domain.facet_tags)

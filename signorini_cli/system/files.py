@@ -1,7 +1,9 @@
-"""Atomic file writes: results and cached meshes are never seen half-written; and the check that an
-output folder can be made and written before a study starts."""
+"""Atomic file writes: results and cached meshes are never seen half-written; the check that an
+output folder can be made and written before a study starts; a C library's failed write as an OSError."""
+import errno
 import os
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -32,6 +34,24 @@ def _temporary(path):
     os.close(fd)
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; these files are as readable as any new file
     return Path(tmp)
+
+
+@contextmanager
+def folder_for(folder):
+    """Within: `folder` exists (made with its missing parents); when the block fails, the folders it made
+    are removed again while empty: a failed write leaves no empty folder behind."""
+    folder = Path(folder)
+    made = [p for p in (*reversed(folder.parents), folder) if not p.exists()]
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        yield folder
+    except BaseException:
+        for path in reversed(made):
+            try:
+                path.rmdir()
+            except OSError:
+                break
+        raise
 
 
 def overwrite(path, text):
@@ -73,3 +93,38 @@ def _umask():
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+@contextmanager
+def library_writes(path):
+    """Within: a C library writing `path` (HDF5 through dolfinx's XDMFFile) prints its diagnostics into memory
+    instead of onto stderr, and its failure (a RuntimeError) is an OSError naming `path`: ENOSPC when the disk
+    holds no free block, else EIO with the library's last line."""
+    with _stderr_in_memory() as printed:
+        try:
+            yield
+        except RuntimeError as err:
+            full = os.statvfs(Path(path).parent).f_bavail == 0
+            code = errno.ENOSPC if full else errno.EIO
+            reason = os.strerror(code) if full else f"{os.strerror(code)}: {str(err).strip() or printed()}"
+            raise OSError(code, reason, str(path)) from None
+
+
+@contextmanager
+def _stderr_in_memory():
+    """Within: descriptor 2 writes into an anonymous file in memory (not onto a full disk); yields a function
+    giving its last line."""
+    memory = os.memfd_create("stderr")
+    saved = os.dup(2)
+    os.dup2(memory, 2)
+
+    def last_line():
+        os.lseek(memory, 0, os.SEEK_SET)
+        lines = os.read(memory, 1 << 20).decode(errors="replace").strip().splitlines()
+        return lines[-1].strip() if lines else ""
+    try:
+        yield last_line
+    finally:
+        os.dup2(saved, 2)
+        for fd in (saved, memory):
+            os.close(fd)

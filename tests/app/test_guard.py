@@ -85,6 +85,7 @@ def check_kept(out, k):
 @pytest.mark.parametrize("signum, level", [
     pytest.param(signal.SIGTERM, 2, id="sigterm-level2"),
     pytest.param(signal.SIGINT, 0, id="sigint-level0"),
+    pytest.param(signal.SIGHUP, 1, id="sighup-level1"),  # the terminal went away: a termination request
 ])
 def test_signal_keeps_levels_and_resume_completes(whole, tmp_path, monkeypatch, capsys, signum, level):
     config, out = write_config(tmp_path), str(tmp_path / "out")

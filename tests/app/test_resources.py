@@ -1,4 +1,4 @@
-"""The memory check: a finest level too big for the machine is refused up front, unless --force."""
+"""The memory check: a finest level too big for the machine is refused up front, unless --ignore-memory-check."""
 import dataclasses
 import re
 from pathlib import Path
@@ -50,8 +50,8 @@ def test_too_big_refused_with_estimate(tmp_path, capsys, monkeypatch):
     # 1025^2 = 1,050,625 dofs, 7 nonzeros per row: 100 MiB + 1000 B/dof + 110 B/nonzero = 1.83 GiB
     assert capsys.readouterr().err == (
         f"signorini: error: {path}: mesh.refinements: the finest level (N=1024: 1,050,625 dofs, 7,354,375 "
-        "Jacobian nonzeros) needs about 1.8 GiB of memory, more than the 1.0 GiB available; use --force to "
-        "run it anyway\n")
+        "Jacobian nonzeros) needs about 1.8 GiB of memory, more than the 1.0 GiB available; use "
+        "--ignore-memory-check to run it anyway\n")
     assert not (tmp_path / "out").exists()  # refused before anything was built or written
 
 
@@ -63,13 +63,20 @@ def test_data_only_counts_its_reference_solution(tmp_path, capsys, monkeypatch):
     assert capsys.readouterr().err == (
         f"signorini: error: {path}: mesh.refinements: the finest level with its reference solution (N=512 and "
         "N=1024: 1,313,794 dofs, 9,196,558 Jacobian nonzeros) needs about 2.3 GiB of memory, more than the 1.0 "
-        "GiB available; use --force to run it anyway\n")
+        "GiB available; use --ignore-memory-check to run it anyway\n")
 
 
-def test_force_runs_anyway(tmp_path, monkeypatch):
+def test_ignore_memory_check_runs_anyway(tmp_path, monkeypatch):
     monkeypatch.setattr(resources, "available_bytes", lambda: 1)
     assert cli.main(["run", write(tmp_path)]) == cli.EXIT_BAD_INPUT
-    assert cli.main(["run", write(tmp_path), "--force"]) == cli.EXIT_OK
+    assert cli.main(["run", write(tmp_path), "--ignore-memory-check"]) == cli.EXIT_OK
+
+
+def test_force_keeps_the_memory_check(tmp_path, monkeypatch):
+    """--force starts over; it no longer switches the memory check off (a forced 3-D N = 400 run was killed
+    by the kernel's out-of-memory killer)."""
+    monkeypatch.setattr(resources, "available_bytes", lambda: 1)
+    assert cli.main(["run", write(tmp_path), "--force"]) == cli.EXIT_BAD_INPUT
 
 
 def test_huge_cube_refused_on_this_machine(tmp_path, capsys):
@@ -78,7 +85,7 @@ def test_huge_cube_refused_on_this_machine(tmp_path, capsys):
     assert cli.main(["run", path]) == cli.EXIT_BAD_INPUT
     assert re.fullmatch(r"signorini: error: .*: mesh\.refinements: the finest level \(N=2000: 8,012,006,001 dofs, "
                         r"120,180,090,015 Jacobian nonzeros\) needs about 19773\.8 GiB of memory, more than the "
-                        r"[\d.]+ GiB available; use --force to run it anyway\n", capsys.readouterr().err)
+                        r"[\d.]+ GiB available; use --ignore-memory-check to run it anyway\n", capsys.readouterr().err)
 
 
 def test_available_bytes_plausible():
@@ -114,7 +121,7 @@ def test_gmsh_size_too_small_refused_before_meshing(tmp_path, capsys, monkeypatc
     # per dof: 203.6 GB = 189.6 GiB, + 100 MiB per rank
     assert re.fullmatch(r"signorini: error: .*: mesh\.sizes: the finest level \(size 0\.0001: 115,000,000 dofs, "
                         r"805,000,000 Jacobian nonzeros\) needs about 189\.7 GiB of memory, more than the "
-                        r"[\d.]+ GiB available; use --force to run it anyway\n", capsys.readouterr().err)
+                        r"[\d.]+ GiB available; use --ignore-memory-check to run it anyway\n", capsys.readouterr().err)
     assert not (tmp_path / "cache").exists() and not (tmp_path / "out").exists()  # nothing left behind
 
 
@@ -126,7 +133,7 @@ def test_msh_file_refined_too_often_refused(tmp_path, capsys):
     # 68 nodes in the file's header, 4^12 times more after 12 uniform refinements: 1,140,850,688 dofs
     assert re.fullmatch(r"signorini: error: .*: mesh\.refinements: the finest level \(quarter_annulus\.msh refined "
                         r"12 times: 1,140,850,688 dofs, 7,985,954,816 Jacobian nonzeros\) needs about .* GiB of "
-                        r"memory, more than the [\d.]+ GiB available; use --force to run it anyway\n",
+                        r"memory, more than the [\d.]+ GiB available; use --ignore-memory-check to run it anyway\n",
                         capsys.readouterr().err)
 
 
