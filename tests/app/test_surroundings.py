@@ -13,6 +13,8 @@ import yaml
 from mpi4py import MPI
 
 from signorini_cli.app import cli, guard
+from signorini_cli.studies import refinement as refinement_study
+import failing_run
 from conftest import BASE, merge
 
 SIGNORINI = str(Path(sys.executable).with_name("signorini"))
@@ -87,11 +89,11 @@ def test_force_starts_over(tmp_path):
 
 
 def test_forced_run_interrupted_at_level_0_leaves_no_old_tables(tmp_path, monkeypatch):
-    """A forced run that ends at level 0 (here a crash, by the testing hook) leaves no old rates.md/tex or
+    """A forced run that ends at level 0 (here a crash inside the level) leaves no old rates.md/tex or
     figures beside its empty rates.csv."""
     study = old_study(tmp_path)
-    monkeypatch.setenv(guard.TEST_FAIL, "0:0")
-    with pytest.raises(RuntimeError, match=guard.TEST_FAIL):
+    monkeypatch.setattr(refinement_study, "solve_level", failing_run.failing(refinement_study.solve_level, 0, 0))
+    with pytest.raises(RuntimeError, match="rank 0 fails at the start of level 0"):
         cli.main(["run", write_config(tmp_path), "--force", "--quiet"])
     assert not [p.name for p in study.glob("*") if p.suffix in (".md", ".tex", ".png", ".pdf")]
     assert rows(study) == [] and (study / "status.txt").read_text().startswith("failed at level 0")
