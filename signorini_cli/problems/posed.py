@@ -49,10 +49,9 @@ def _at_cell_points(msh, value):
     cell = msh.topology.cell_name()
     X, _ = basix.make_quadrature(basix.cell.string_to_type(cell), compliance.QUADRATURE_DEGREE)
     cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
-    if not len(cells):  # a rank that owns no cell (tiny meshes on many ranks) checks nothing
-        return np.zeros((0, 3)), np.zeros(0)
-    x = fem.Expression(ufl.SpatialCoordinate(msh), X).eval(cells).reshape(len(cells), len(X), -1)
-    values = fem.Expression(value, X).eval(cells).reshape(len(cells), len(X), -1)
+    size = int(np.prod(ufl.shape(value), dtype=int))  # explicit: a rank may own no cell (tiny meshes)
+    x = fem.Expression(ufl.SpatialCoordinate(msh), X).eval(cells).reshape(len(cells), len(X), msh.geometry.dim)
+    values = fem.Expression(value, X).eval(cells).reshape(len(cells), len(X), size)
     worst = np.argmax(~np.isfinite(values), axis=2)  # the first non-finite component of each point
     pointwise = np.take_along_axis(values, worst[..., None], axis=2)[..., 0]
     points = np.zeros((len(cells) * len(X), 3))
