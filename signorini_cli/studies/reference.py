@@ -9,7 +9,8 @@ from mpi4py import MPI
 from dolfinx import fem
 
 from ..meshing import meshes
-from ..problems import compliance, measure
+from ..problems import measure
+from ..problems.registry import problem_of
 from ..solve import strategies
 from ..solve.transfer import transfer
 
@@ -50,7 +51,7 @@ class Reference:
             return (*self.solutions[eps_value], 0.0)
         begin = time.perf_counter()
         domain = self.mesh()
-        u_ref = fem.Function(fem.FunctionSpace(domain.mesh, ("Lagrange", 1)), name="u_ref")
+        u_ref = fem.Function(problem_of(self.cfg).space(self.cfg, domain.mesh), name="u_ref")
         outcome = solve(self.cfg, domain, u_ref, eps_value, start)
         if not outcome.converged:
             logger.warning("reference N=%d at eps=%.3e did not converge: %s", self.n, eps_value, outcome.reason)
@@ -64,7 +65,7 @@ class Reference:
         moved = transfer(u_h, u_ref.function_space)
         found = measure.difference_norms(moved, u_ref)
         if with_contact:
-            ds_c = domain.ds_c(measure.ERROR_DEGREE)  # the positive parts kink inside facets
+            ds_c = domain.ds_c(measure.contact_error_degree(u_ref.function_space))
             found.update(measure.contact_errors(moved, u_ref, eps_value, self.cfg.alpha, ds_c, found["H1"]))
         return {f"{name}_ref": value for name, value in found.items()}
 
@@ -73,8 +74,9 @@ def solve(cfg, domain, u, eps_value, previous):
     """The level's problem with eps = eps_value on the reference mesh, solved into u by the study's
     strategy from `previous` (a level's u_h: the nested guess); u = 0 on Γ_D (data-only scenes)."""
     eps = fem.Constant(domain.mesh, eps_value)
-    forms = compliance.forms(cfg, domain, u, eps)
-    bcs = [compliance.dirichlet_condition(u.function_space, domain, None)]
+    problem_module = problem_of(cfg)
+    forms = problem_module.forms(cfg, domain, u, eps)
+    bcs = [problem_module.dirichlet_condition(u.function_space, domain, None)]
     problem = strategies.problem(forms, u, bcs, eps, eps_value, cfg.dimension)
     # the linear floor times the level's own solve, not its reference's
     return strategies.solve(dataclasses.replace(cfg.solver, linear_floor=False), problem, previous)

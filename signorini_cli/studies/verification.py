@@ -6,7 +6,8 @@ from mpi4py import MPI
 from ..analysis import rates
 from ..config import names
 from ..meshing.meshes import CONTACT
-from ..problems import compliance, measure
+from ..problems import measure
+from ..problems.registry import problem_of
 from . import reference
 
 CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
@@ -43,7 +44,8 @@ class Verifier:
         errors = {}
         if forms.u_exact is not None and has_contact and _any_error(wanted):
             found = measure.contact_errors(u_h, forms.u_exact, level.eps, self.cfg.alpha,
-                                           domain.ds_c(measure.ERROR_DEGREE), level.errors["H1"])
+                                           domain.ds_c(measure.contact_error_degree(u_h.function_space)),
+                                           level.errors["H1"])
             errors.update({k: v for k, v in found.items() if _wanted(k, wanted)})
         # a level that did not converge gets no reference solve and is no base for differences
         if self.reference is not None and converged:
@@ -69,10 +71,10 @@ class Verifier:
         if "penetration" in wanted or "contact_measure" in wanted:
             dofs, points = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
             if "penetration" in wanted:
-                found["penetration"] = measure.penetration(u_h, dofs.ravel())
+                found["penetration"] = measure.penetration(u_h, dofs)
             if "contact_measure" in wanted:
                 found["contact_measure"] = measure.contact_measure(u_h, dofs, points)
-        ds_c = domain.ds_c(measure.ERROR_DEGREE)
+        ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
         if "contact_force" in wanted:
             found["contact_force"] = measure.contact_force(u_h, level.eps, self.cfg.alpha, ds_c)
         if "energy" in wanted:
@@ -81,8 +83,9 @@ class Verifier:
 
     def _energy(self, level, domain, u_h, forms, ds_c):
         msh = domain.mesh
-        f, g = compliance.data(self.cfg, msh, level.eps, forms.u_exact, ufl.FacetNormal(msh))
-        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": compliance.QUADRATURE_DEGREE})
+        problem_module = problem_of(self.cfg)
+        f, g = problem_module.data(self.cfg, msh, level.eps, forms.u_exact, ufl.FacetNormal(msh))
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": problem_module.QUADRATURE_DEGREE})
         return measure.energy(u_h, f, g, level.eps, self.cfg.alpha, dx, ds_c)
 
     def _columns(self, level, errors, quantities, wanted, has_contact):
