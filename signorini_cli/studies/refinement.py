@@ -25,10 +25,10 @@ def run_refinement(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=(
         levels.append(solve_level(cfg, index, n, comm, monitor, verifier, previous))
         if levels[-1].outcome.converged:
             previous = strategies.Handoff(levels[-1].solution)
-        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
         verification.add_rates(levels)
-        if on_level is not None:
+        if on_level is not None:  # it sees the level's u_h (Level.solution) before it is let go
             on_level(levels)
+        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels

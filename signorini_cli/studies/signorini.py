@@ -21,8 +21,10 @@ def run_signorini(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()
                                      previous, monitor)
         levels.append(level)
         previous = u_h if level.outcome.converged else previous
-        if on_level is not None:
+        if on_level is not None:  # it sees the level's u_h (Level.solution), which the next level lets go
+            level.solution = u_h
             on_level(levels)
+            level.solution = None
         if not level.outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels
