@@ -14,6 +14,7 @@ from signorini_cli.report import tables
 COLUMNS = ("N", "h", "dofs", "newton_its", "L2", "rate_L2", "H1", "rate_H1", "pos_gc", "rate_pos_gc",
            "contact_quadrature")
 NORMS = ("L2", "H1", "pos_gc")
+P2_RULE = config.settings.P2_CONTACT_QUADRATURE
 FIT_LEVELS = 3  # the rate fitted over the last three levels, as the study's verdict does by default
 
 
@@ -24,16 +25,19 @@ def main(argv=None):
     parser.add_argument("--out", default="docs/elements.md", help="the page to write")
     args = parser.parse_args(argv)
     runs = [(path, config.load(path, [f"output.dir={args.output}"] if args.output else [])) for path in args.configs]
-    studies = {(cfg.element.degree, cfg.contact_quadrature): (path, cfg, tables.load(cfg.output_dir).rows)
-               for path, cfg in runs}
-    p1 = next(v for (degree, _), v in studies.items() if degree == 1)
-    p2 = studies[(2, config.settings.P2_CONTACT_QUADRATURE)]
-    checks = [v for (degree, rule), v in studies.items() if degree == 2 and rule != p2[1].contact_quadrature]
+    studies = {(cfg.element.degree, cfg.problem.exact_solves, str(cfg.contact_quadrature)):
+               (path, cfg, tables.load(cfg.output_dir).rows) for path, cfg in runs}
+    p1, p2 = studies[(1, "compliance", "exact")], studies[(2, "compliance", str(P2_RULE))]
+    checks = [v for (degree, solves, rule), v in studies.items()
+              if degree == 2 and solves == "compliance" and rule != str(P2_RULE)]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     sections = [HEADER.replace("{provenance}", provenance.line("elements", [cfg.output_dir for _, cfg in runs])),
                 study_section("P1", *p1), study_section("P2", *p2), comparison(p1, p2)]
     sections += [quadrature_section(p2, check) for check in checks]
+    limit = [studies.get((k, "signorini", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
+    if all(limit):
+        sections.append(signorini_section(*limit))
     out.write_text("\n\n".join(sections) + "\n")
     print(f"wrote {out}")
     return 0
@@ -75,14 +79,14 @@ def comparison(p1, p2):
                      + ("keeps" if keeps(fits, k) else "does not keep") + " the best order the element allows"
                      + (f" ({keeps_detail(fits, k)})." if not keeps(fits, k) else "."))
     lines.append(f"- Γ_C: pos_gc {rate(fit1['pos_gc'])} (P1) and {rate(fit2['pos_gc'])} (P2).")
-    lines.append(f"- At N = {last2['N']}: P2 L2 {last2['L2']:.3e} with {last2['dofs']:,} dofs against P1 "
-                 f"{last1['L2']:.3e} with {last1['dofs']:,} dofs (P1 at N = {last1['N']}); "
-                 f"H1 {last2['H1']:.3e} against {last1['H1']:.3e}.")
-    same_dofs = next((r for r in rows1 if r["dofs"] == last2["dofs"]), None)
-    if same_dofs is not None:
-        lines.append(f"- At equal dofs ({same_dofs['dofs']:,}: P1 at N = {same_dofs['N']}): P2's L2 error is "
-                     f"{same_dofs['L2'] / last2['L2']:.0f} times smaller, its H1 error "
-                     f"{same_dofs['H1'] / last2['H1']:.0f} times.")
+    lines.append(f"- At N = {last2['N']}: P2 L2 {last2['L2']:.3e} and H1 {last2['H1']:.3e} with {last2['dofs']:,} "
+                 f"dofs against P1 L2 {last1['L2']:.3e} and H1 {last1['H1']:.3e} with {last1['dofs']:,} dofs.")
+    for r2 in rows2:
+        r1 = next((r for r in rows1 if r["dofs"] == r2["dofs"]), None)
+        if r1 is not None:
+            lines.append(f"- At equal dofs ({r2['dofs']:,}: P2 at N = {r2['N']}, P1 at N = {r1['N']}): P2's L2 "
+                         f"error is {r1['L2'] / r2['L2']:.0f} times smaller than P1's, its H1 error "
+                         f"{r1['H1'] / r2['H1']:.0f} times.")
     lines.append("- The manufactured data g = ε∂_n u_ex + [u_ex]_+^α make u_ex the exact solution of the "
                  "compliance problem at each level's ε, so these are discretisation errors of that problem; "
                  "its distance to the Signorini solution (the model error, O(ε)) is not in them "
@@ -101,6 +105,37 @@ def quadrature_section(p2, check):
         f"relative change of L2 or H1 per level: " + ", ".join(
             f"N = {r['N']}: {c:.1e}" for r, c in zip(rows, changes))
         + f". The default rule's quadrature error is at most {max(changes):.1e} of the discretisation error.",
+    ])
+
+
+def signorini_section(p1, p2):
+    """Both elements against the Signorini solution u_S with the same eps = h: the total error."""
+    (path1, cfg, rows1), (path2, _, rows2) = p1, p2
+    fit1, fit2 = ({norm: fit(rows, norm) for norm in ("L2", "H1")} for rows in (rows1, rows2))
+    columns = ("N", "epsilon", "dofs", "L2", "rate_L2", "H1", "rate_H1")
+    last1, last2 = rows1[-1], rows2[-1]
+    return "\n".join([
+        "## Against the Signorini solution: the penalty's inconsistency",
+        "",
+        f"`{path1}` and `{path2}`: the same model (α = {cfg.alpha:g}, ε = h) with data f, u_D of the Signorini "
+        "solution u_S of [signorini-solution.md](signorini-solution.md) and contact data g = 0, errors "
+        "measured against u_S. The compliance model is not consistent with the Signorini problem: u_S − u_h "
+        "holds the model error u_S − u_ε, O(ε^{1/α}) by the heuristic of [limit.md](limit.md) (section 2), "
+        "besides the discretisation error.",
+        "",
+        "P1:",
+        "",
+        markdown(rows1, columns),
+        "",
+        "P2:",
+        "",
+        markdown(rows2, columns),
+        "",
+        f"Fitted over the last {FIT_LEVELS} levels: P1 L2 {rate(fit1['L2'])}, H1 {rate(fit1['H1'])}; P2 L2 "
+        f"{rate(fit2['L2'])}, H1 {rate(fit2['H1'])} (the heuristic 1/α = {1 / cfg.alpha:.2f} for the model "
+        f"error). At N = {last2['N']} P2's errors are {last1['L2'] / last2['L2']:.2f} (L2) and "
+        f"{last1['H1'] / last2['H1']:.2f} (H1) times smaller than P1's; its rates exceed P1's by "
+        f"{fit2['L2'] - fit1['L2']:.2f} (L2) and {fit2['H1'] - fit1['H1']:.2f} (H1).",
     ])
 
 
