@@ -283,7 +283,8 @@ class Config:
         return levels
 
 
-SECTIONS = (Config, Element, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification, Expect, Limit)
+SECTIONS = (Config, Element, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification,
+            Expect, Limit)
 REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 

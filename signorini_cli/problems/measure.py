@@ -55,7 +55,8 @@ def product_degree(V):
 
 def difference_norms(u_h, u):
     """{'L2': ||u - u_h||_{L2}, 'H1': |u - u_h|_{H1}} for two functions of one space (exact quadrature)."""
-    dx = ufl.Measure("dx", domain=u.function_space.mesh, metadata={"quadrature_degree": product_degree(u.function_space)})
+    V = u.function_space
+    dx = ufl.Measure("dx", domain=V.mesh, metadata={"quadrature_degree": product_degree(V)})
     e = u - u_h
     return {"L2": np.sqrt(abs(integrate(e**2, dx))),
             "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
