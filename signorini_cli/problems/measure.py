@@ -203,7 +203,7 @@ def facet_closure_dofs(V, facets):
     local = np.argmax(c2f.array.reshape(-1, tdim + 1)[cells] == facets[:, None], axis=1)
     closure = np.array([V.dofmap.dof_layout.entity_closure_dofs(tdim - 1, i) for i in range(tdim + 1)])
     cell_dofs = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
-    return cell_dofs[cells[:, None], closure[local]].reshape(len(facets), -1)
+    return cell_dofs[cells[:, None], closure[local]]
 
 
 def vertex_to_dof(V):
