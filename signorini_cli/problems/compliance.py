@@ -1,4 +1,4 @@
-"""The compliance model in UFL: weak form (SPEC; paper eq. (10)), positive part, manufactured data."""
+"""The compliance model in UFL: weak form (paper eq. (10)), positive part, manufactured data."""
 from dataclasses import dataclass
 
 import numpy as np

@@ -1,6 +1,6 @@
 """The compliance term (1/eps)∫_Γc [u_h]_+^alpha v of the P1 solution, its Jacobian and the kinked data
 term (1/eps)∫_Γc [u_ex]_+^alpha v, integrated exactly (or nodally) on the rank's Γ_C facets and added
-beside the UFL forms into the PETSc residual and Jacobian (issue 17)."""
+beside the UFL forms into the PETSc residual and Jacobian."""
 import math
 
 import numpy as np
