@@ -13,6 +13,7 @@ from mpi4py import MPI
 
 from signorini_cli import config, load, run
 from signorini_cli.problems import measure
+from conftest import U_SIGNORINI, merge
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
@@ -88,3 +89,13 @@ def test_api_page_example(tmp_path, monkeypatch, capsys):
 @pytest.mark.mpi
 def test_api_page_example_parallel(tmp_path, monkeypatch, capsys):
     check_page_example(tmp_path, monkeypatch, capsys)
+
+
+def test_run_passes_u_h_of_a_signorini_study(raw_config, tmp_path):
+    """The VI's levels are passed too, each with its own P1 solution."""
+    raw = merge(raw_config, {"study_type": "signorini", "alpha": None, "epsilon": None,
+                             "problem": {"exact": U_SIGNORINI, "exact_solves": "signorini"}})
+    seen = []
+    study = run(load(raw, output__dir=str(tmp_path)), comm=MPI.COMM_SELF,
+                on_level=lambda level, u_h: seen.append((level.n, u_h.function_space.dofmap.index_map.size_global)))
+    assert seen == [(4, 25), (8, 81)] and [row["N"] for row in study.rows] == [4, 8]
