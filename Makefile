@@ -115,6 +115,17 @@ $(MADE)/limit/%.status: % $(PACKAGE) | $(STAMP)
 docs/limit.md: $(LIMIT_STAMPS) scripts/limit_page.py scripts/provenance.py
 	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out $@
 
+# P2 against P1 (docs/elements.md): run configs/elements/, then write the page from the runs.
+ELEMENT_CONFIGS := $(sort $(wildcard configs/elements/*.yaml))
+ELEMENT_STAMPS := $(ELEMENT_CONFIGS:%=$(MADE)/elements/%.status)
+.PHONY: elements
+elements: docs/elements.md
+	$(call missed,$(ELEMENT_STAMPS))
+$(MADE)/elements/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<)
+docs/elements.md: $(ELEMENT_STAMPS) scripts/elements_page.py scripts/provenance.py
+	$(PY) scripts/elements_page.py $(ELEMENT_CONFIGS) --out $@
+
 .PHONY: stiff
 # the stiff suite, the regular studies with strategy auto, a delta sweep and a conditioning sweep -> docs/stability.md
 # (one script runs them all: re-run when it, a config or the package changed)

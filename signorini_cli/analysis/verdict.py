@@ -129,6 +129,9 @@ def expected(cfg, norm):
     if cfg.problem.exact_solves == "signorini":  # docs/limit.md; a Signorini study's exact solution is one
         return rates.Expected(None, reason="errors against the Signorini solution u_S: the paper bounds "
                                            "u_eps - u_eps,h only (total-error heuristics: docs/limit.md)")
+    if cfg.element.degree != 1:
+        return rates.Expected(None, reason="the paper proves its rates for P1 elements; element.degree "
+                                           f"{cfg.element.degree} is measured only (docs/elements.md)")
     if not cfg.verification.regular:  # the user says the paper's regularity hypothesis fails
         return rates.Expected(None, reason="the paper's rates assume u in W^{2,alpha+1}; this scene's solution "
                                            "is singular (verification.regular: false, Remark 3.4)")

@@ -23,6 +23,10 @@ ROW_NONZEROS = {2: 7, 3: 15}
 # measured 1.21, 1.20 at size 0.02 (unit square, half disk); in 3-D measured 0.92, 0.88 at size 0.05 (unit
 # cube, half ball), falling with the size. The boundary adds more on coarse meshes, which fit anyway.
 GMSH_DOFS_PER_MEASURE = {2: 1.15, 3: 0.85}
+# P2 (element.degree 2, 2-D only): a dof per vertex and per edge, E ≈ 3V, so 4 dofs per P1 dof; on the Kuhn
+# grid a vertex dof couples with 19 dofs and an edge dof with 9, (19 + 3·9)/4 = 11.5 nonzeros per row. The
+# bytes per dof and per nonzero are P1's fit above, not measured for P2.
+P2_DOFS_PER_P1_DOF, P2_ROW_NONZEROS = 4, 11.5
 
 
 def level_size(mesh_cfg, n):
@@ -64,6 +68,15 @@ def peak_meshes(cfg, comm):
     """[(label, dofs, nonzeros)] of the meshes alive at the peak: the largest level, and for a data-only
     scene the reference mesh, verification.reference_refinements uniform refinements finer; None when
     a size cannot be told before meshing (a geometry gmsh cannot read: reported when it meshes)."""
+    peak = p1_peak_meshes(cfg, comm)
+    if peak is None or cfg.element.degree == 1:
+        return peak
+    return [(label, P2_DOFS_PER_P1_DOF * dofs, round(P2_ROW_NONZEROS * P2_DOFS_PER_P1_DOF * dofs))
+            for label, dofs, _ in peak]
+
+
+def p1_peak_meshes(cfg, comm):
+    """peak_meshes for P1 elements."""
     extra = reference_refinements(cfg)
     if cfg.mesh.kind in ("unit_square", "unit_cube"):
         finest = cfg.mesh.levels[-1]

@@ -238,6 +238,17 @@ class Output:
                               "width of a default LaTeX article)")
 
 
+@dataclass(frozen=True)
+class Element:
+    """The finite element of the compliance problem: Lagrange of degree 1 or 2."""
+    degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature a Gauss rule)")
+
+
+# P2: no closed form for the contact term, so a Gauss rule on Γ_C; its degree by default (docs/elements.md
+# measures it against a rule of twice the degree)
+P2_CONTACT_QUADRATURE = 8
+
+
 @dataclass(frozen=True, kw_only=True)
 class Config:
     study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study")
@@ -252,7 +263,9 @@ class Config:
                        example="bottom")
     problem: Problem = key(None, "give exact, or f (and g)")
     positive_part: PositivePart = key(PositivePart(), "exact | smooth | {kind: smooth, delta: ...}")
-    contact_quadrature: object = key("exact", "exact | vertex | an integer >= 1 (a Gauss rule of that degree)")
+    contact_quadrature: object = key("exact", "exact | vertex | an integer >= 1 (a Gauss rule of that degree); "
+                                              f"default {P2_CONTACT_QUADRATURE} with element.degree 2")
+    element: Element = key(Element(), "the finite element (docs/elements.md)")
     solver: Solver = key(Solver(), "Newton and linear solves (docs/guide/solvers.md)")
     output: Output = key(Output(), "where and what is written")
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
@@ -277,7 +290,8 @@ class Config:
         return levels
 
 
-SECTIONS = (Config, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification, Expect, Limit)
+SECTIONS = (Config, Element, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification,
+            Expect, Limit)
 REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 
@@ -450,8 +464,9 @@ def from_dict(raw, folder=None):
                   output=_output(top.section("output"), "output"),
                   verification=_verification(top.section("verification"), "verification", raw.get("problem")),
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
-                  description=top.string("description", empty=True), outside_theory=outside)
-    return _study_type(_check_geometry_mesh(base, raw), raw)
+                  description=top.string("description", empty=True), outside_theory=outside,
+                  element=_element(top.section("element"), "element"))
+    return _check_element(_study_type(_check_geometry_mesh(base, raw), raw), raw)
 
 
 def _dimension(value, mesh):
@@ -613,6 +628,33 @@ def _contact_quadrature(value, path, positive_kind):
     if value == "vertex" and positive_kind != "exact":
         raise ConfigError(path, "vertex lumps the exact positive part; positive_part: smooth keeps its quadrature")
     return value
+
+
+def _element(raw, path):
+    _keys(raw, path, optional=keys_of(Element))
+    return Element(degree=_Section(raw, path, Element).integer("degree", low=1, high=2))
+
+
+def _check_element(cfg, raw):
+    """What P2 supports: the compliance refinement study in 2-D, its contact term by a Gauss rule (the
+    exact and vertex rules integrate piecewise linear u_h), fields written only for P1 (XDMF stores the
+    values at the mesh's vertices)."""
+    if cfg.element.degree == 1:
+        return cfg
+    if cfg.study_type != "refinement":
+        raise ConfigError("element.degree", f"2 is for refinement studies; study_type {cfg.study_type} solves "
+                                            "the Signorini VI, whose nodal bounds u_i <= 0 are P1 only")
+    if cfg.dimension != 2:
+        raise ConfigError("element.degree", "2 is for 2-D meshes: the Γ_C measures of P2 (penetration, "
+                                            "contact_measure) are in closed form on segments only")
+    if cfg.output.fields:
+        raise ConfigError("output.fields", "written for element.degree 1 only (XDMF stores vertex values)")
+    if "contact_quadrature" not in raw:
+        return dataclasses.replace(cfg, contact_quadrature=P2_CONTACT_QUADRATURE)
+    if not isinstance(cfg.contact_quadrature, int):
+        raise ConfigError("contact_quadrature", f"{cfg.contact_quadrature} integrates P1 only; with "
+                                                "element.degree 2 give a Gauss rule's degree (an integer)")
+    return cfg
 
 
 def _problem(raw, path, dim):

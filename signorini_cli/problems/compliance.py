@@ -8,9 +8,9 @@ from dolfinx import fem
 
 from ..config import expressions
 from ..meshing.meshes import CONTACT, DIRICHLET
-from . import contact
+from . import contact, element, measure
 
-QUADRATURE_DEGREE = 6  # data terms (sin, exp ...); on Γ_C too with contact_quadrature: <degree>
+QUADRATURE_DEGREE = 6  # data terms (sin, exp ...) against the test functions, in Ω
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,16 @@ class Forms:
     ds_c: ufl.Measure
     split: Split = None
     contact: object = None  # contact.ContactTerm: Γ_C terms integrated beside UFL (contact_quadrature exact, vertex)
+
+
+def space(cfg, msh):
+    """The scalar Lagrange space of the configured degree (element.degree)."""
+    return element.space(msh, cfg.element.degree)
+
+
+def errors(u_h, u_exact, h):
+    """{'L2', 'H1'}: ||u_ex − u_h||_{L2(Ω)} and the seminorm |u_ex − u_h|_{H1(Ω)}, MPI-reduced."""
+    return measure.errors(u_h, u_exact, h)
 
 
 def positive_part(u, positive, h, eps):
@@ -96,7 +106,7 @@ def forms(cfg, domain, u_h, eps):
     f, h = on_mesh(f, msh), fem.Constant(msh, domain.h)
     q = compliance(u_h, cfg.alpha, cfg.positive_part, h, eps)
     q = q if term is None or not term.penalty else 0
-    # P1 gradients are constant on (affine) cells: the stiffness is exact with UFL's own degree (0)
+    # on affine cells ∇u_h·∇v is a polynomial of degree 2(k−1): UFL's own estimate integrates it exactly
     stiffness = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * ufl.dx(domain=msh)
     load = f * v * dx
     boundary = (q - g) / eps * v * ds_c if not (_is_zero(q) and _is_zero(g)) else None

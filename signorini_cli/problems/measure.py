@@ -5,16 +5,9 @@ from mpi4py import MPI
 
 from dolfinx import fem
 
+from . import element
 
-ERROR_DEGREE = 8  # quadrature for u_h − u_ex: P1 error of a smooth u_ex, well above the rates' needs
-P1_DEGREE = 2  # ∫ of products of two P1 functions or of their gradients: degree 2 is exact
-# Fine levels (h <= FINE_H) take degree 6: 12 points per triangle instead of 16, 24 per tetrahedron instead
-# of 45. Against degree 12 on the bench problems (u_ex = sin(2 pi x)(1-y)^2, sin(2 pi x) sin(pi y)(1-z)^2)
-# it moves L2 and H1 by at most 1.6e-11 relative in 2-D (N = 64, h = 0.022; 3.2e-12 at N = 1024) and 6.0e-11
-# in 3-D (N = 64, h = 0.027), where degree 8 moves them by up to 8.5e-13 (round-off). Coarser levels keep
-# degree 8: in 3-D degree 6 moves L2 by 9.9e-10 at N = 32 (h = 0.054) and 1.6e-8 at N = 16. The threshold
-# is in h, so a u_ex varying much faster than these (wavelength 1) needs finer levels for the same 1e-9.
-FINE_ERROR_DEGREE, FINE_H = 6, 0.03
+
 
 
 def integrate(expr, measure):
@@ -25,9 +18,9 @@ def integrate(expr, measure):
 
 def errors(u_h, u_exact, h):
     """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (the seminorm, as in the paper)}; h, the mesh's
-    size (Domain.h), sets the quadrature (error_degree)."""
+    size (Domain.h), and u_h's degree set the quadrature (element.error_degree)."""
     msh = u_h.function_space.mesh
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": error_degree(h)})
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": error_degree(u_h.function_space, h)})
     e = u_h - u_exact
     l2, h1 = integrate_together(msh, [e**2, ufl.inner(ufl.grad(e), ufl.grad(e))], dx)
     return {"L2": np.sqrt(abs(l2)), "H1": np.sqrt(abs(h1))}
@@ -44,14 +37,26 @@ def integrate_together(msh, exprs, dx):
     return msh.comm.allreduce(local, op=MPI.SUM)
 
 
-def error_degree(h):
-    """The quadrature degree of the error integrals on a mesh of size h: FINE_ERROR_DEGREE when h <= FINE_H."""
-    return FINE_ERROR_DEGREE if h <= FINE_H else ERROR_DEGREE
+def error_degree(V, h):
+    """The quadrature degree of the error integrals of a function in V on a mesh of size h."""
+    return element.error_degree(element.degree_of(V), h)
+
+
+def contact_error_degree(V):
+    """The quadrature degree of the Γ_C error integrals of a function in V: the coarse levels' error degree
+    on every level, since the positive parts kink inside facets."""
+    return element.error_degree(element.degree_of(V), float("inf"))
+
+
+def product_degree(V):
+    """The quadrature degree exact for ∫ u v and ∫ ∇u·∇v of u, v in V."""
+    return element.product_degree(element.degree_of(V))
 
 
 def difference_norms(u_h, u):
-    """{'L2': ||u - u_h||_{L2}, 'H1': |u - u_h|_{H1}} for two P1 functions on one mesh (exact quadrature)."""
-    dx = ufl.Measure("dx", domain=u.function_space.mesh, metadata={"quadrature_degree": P1_DEGREE})
+    """{'L2': ||u - u_h||_{L2}, 'H1': |u - u_h|_{H1}} for two functions of one space (exact quadrature)."""
+    V = u.function_space
+    dx = ufl.Measure("dx", domain=V.mesh, metadata={"quadrature_degree": product_degree(V)})
     e = u - u_h
     return {"L2": np.sqrt(abs(integrate(e**2, dx))),
             "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
@@ -59,7 +64,7 @@ def difference_norms(u_h, u):
 
 def model_differences(u_eps, u_S, ds_c, gamma_c_dofs):
     """The model error of an ε-sweep: ||u_{ε,h} − u_{S,h}|| in L2(Ω), H1 (seminorm) and L2(Γ_C) (`ds_c`
-    exact for P1 products), and the largest penetration max_Γc [u_{ε,h}]_+ (a nodal max for P1)."""
+    exact for products of the two), and the largest penetration max_Γc [u_{ε,h}]_+ (a nodal max for P1)."""
     found = difference_norms(u_eps, u_S)
     found["L2_gamma_c"] = np.sqrt(abs(integrate((u_eps - u_S) ** 2, ds_c)))
     found["penetration"] = penetration(u_eps, gamma_c_dofs)
@@ -94,18 +99,57 @@ def energy(u_h, f, g, eps, dx, ds_c, penalty):
 
 
 def penetration(u_h, contact_dofs):
-    """The largest penetration max_{Γ_C} [u_h]_+: for P1 attained at a vertex of Γ_C."""
+    """The largest penetration max_{Γ_C} [u_h]_+: for P1 attained at a vertex of Γ_C (contact_dofs, any
+    shape); for P2 the maximum of each Γ_C segment's quadratic (contact_dofs from contact_facet_dofs)."""
     values = u_h.x.array[contact_dofs]
+    if element.degree_of(u_h.function_space) == 2 and values.size:
+        values = quadratic_max(values)
     local = float(values.max()) if values.size else 0.0
     return max(u_h.function_space.mesh.comm.allreduce(local, op=MPI.MAX), 0.0)
 
 
 def contact_measure(u_h, facet_dofs, facet_points):
-    """|{u_h > 0} ∩ Γ_C|, exact for P1: on each Γ_C facet (vertex dofs, vertex points) the positive
-    part of a linear function covers a fraction of the facet known in closed form."""
+    """|{u_h > 0} ∩ Γ_C|, exact for P1 and P2 on segments: on each Γ_C facet (its dofs and their points,
+    vertices first) the positive part of a linear function, or of a quadratic on a segment, covers a
+    fraction of the facet known in closed form."""
     values = u_h.x.array[facet_dofs]
-    local = float(np.sum(facet_sizes(facet_points) * positive_fraction(values))) if len(values) else 0.0
+    if not len(values):
+        return u_h.function_space.mesh.comm.allreduce(0.0, op=MPI.SUM)
+    if element.degree_of(u_h.function_space) == 2:
+        fraction, vertices = quadratic_positive_fraction(values), facet_points[:, :2]
+    else:
+        fraction, vertices = positive_fraction(values), facet_points
+    local = float(np.sum(facet_sizes(vertices) * fraction))
     return u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+
+
+def quadratic(values):
+    """(a, B, C): p(t) = a + B t + C t² on [0, 1] through the values (p(0), p(1), p(1/2)), shape (n, 3)."""
+    a, b, m = values[:, 0], values[:, 1], values[:, 2]
+    return a, 4 * m - 3 * a - b, 2 * a + 2 * b - 4 * m
+
+
+def quadratic_max(values):
+    """max over [0, 1] of each segment's quadratic: its end values, or its vertex inside when concave."""
+    a, B, C = quadratic(values)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(C < 0, -B / (2 * C), 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    return np.maximum(values[:, :2].max(axis=1), a + B * t + C * t**2)
+
+
+def quadratic_positive_fraction(values):
+    """Fraction of [0, 1] where each segment's quadratic is > 0: its sign on the pieces between its zeros."""
+    a, B, C = quadratic(values)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = np.sqrt(np.where(C != 0, B**2 - 4 * a * C, np.nan))
+        roots = np.stack((np.where(C != 0, (-B - disc) / (2 * C), -a / B),
+                          np.where(C != 0, (-B + disc) / (2 * C), np.nan)), axis=1)
+    roots = np.where(np.isfinite(roots), np.clip(roots, 0.0, 1.0), 1.0)
+    breaks = np.sort(np.concatenate((np.zeros((len(a), 1)), roots, np.ones((len(a), 1))), axis=1), axis=1)
+    middle = (breaks[:, 1:] + breaks[:, :-1]) / 2
+    positive = a[:, None] + B[:, None] * middle + C[:, None] * middle**2 > 0
+    return np.sum(np.diff(breaks, axis=1) * positive, axis=1)
 
 
 def facet_sizes(points):
@@ -130,16 +174,33 @@ def positive_fraction(values):
 
 
 def contact_facet_dofs(V, facet_tags, marker):
-    """(dofs, points): for each facet tagged `marker` and owned by this rank, the P1 dofs and
-    coordinates of its vertices, shape (facets, vertices) and (facets, vertices, 3)."""
+    """(dofs, points): for each facet tagged `marker` and owned by this rank, its dofs and their
+    coordinates, shape (facets, k) and (facets, k, 3): P1 the vertices, P2 the vertices then the edge's."""
     msh = V.mesh
     tdim = msh.topology.dim
     facets = facet_tags.indices[facet_tags.values == marker]
     facets = facets[facets < msh.topology.index_map(tdim - 1).size_local]  # owned: counted once
+    if element.degree_of(V) > 1:
+        dofs = facet_closure_dofs(V, facets)
+        return dofs, V.tabulate_dof_coordinates()[dofs]
     msh.topology.create_connectivity(tdim - 1, 0)
     f2v = msh.topology.connectivity(tdim - 1, 0).array.reshape(-1, tdim)  # simplices: tdim vertices
     dofs = vertex_to_dof(V)[f2v[facets]]
     return dofs, V.tabulate_dof_coordinates()[dofs]
+
+
+def facet_closure_dofs(V, facets):
+    """The dofs on the closure of each facet (its vertices' first), read from one cell holding it."""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    msh.topology.create_connectivity(tdim, tdim - 1)
+    f2c, c2f = msh.topology.connectivity(tdim - 1, tdim), msh.topology.connectivity(tdim, tdim - 1)
+    cells = f2c.array[f2c.offsets[facets]]
+    local = np.argmax(c2f.array.reshape(-1, tdim + 1)[cells] == facets[:, None], axis=1)
+    closure = np.array([V.dofmap.dof_layout.entity_closure_dofs(tdim - 1, i) for i in range(tdim + 1)])
+    cell_dofs = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
+    return cell_dofs[cells[:, None], closure[local]]
 
 
 def vertex_to_dof(V):

@@ -1,4 +1,4 @@
-"""The discrete Signorini problem (paper eq. (8)) on the same P1 space: u_h <= 0 at the Γ_C nodes,
+"""The discrete Signorini problem (paper eq. (8)) on the P1 space: u_h <= 0 at the Γ_C nodes,
 solved by PETSc's reduced-space semismooth Newton (vinewtonrsls) with variable bounds."""
 from dataclasses import dataclass
 
@@ -11,7 +11,7 @@ from dolfinx import fem, la
 from dolfinx.fem import petsc as fem_petsc
 
 from ..solve import strategies
-from . import compliance
+from . import compliance, element, measure
 
 # A Γ_C node is in contact when its bound is active: vinewtonrsls puts active nodes exactly on the
 # bound (measured on the manufactured u_S, N = 16..256: contact nodes are 0.0, the free node nearest to
@@ -28,12 +28,32 @@ class Contact:
     pressure_max: float    # max_i λ_i / ∫_Γc φ_i, the discrete contact pressure −∂_n u_h
 
 
+def space(cfg, msh):
+    """P1: the discrete VI bounds u_h <= 0 at the Γ_C nodes, which is u_h <= 0 on Γ_C for P1 only."""
+    return element.space(msh, 1)
+
+
+def exact_solution(cfg, msh):
+    """u_S as UFL, or None (validated: a Signorini solution does not depend on eps)."""
+    return compliance.exact_solution(cfg, msh, None)
+
+
+def dirichlet_condition(V, domain, u_exact):
+    """u = u_S on Γ_D (manufactured scenes), else 0."""
+    return compliance.dirichlet_condition(V, domain, u_exact)
+
+
+def errors(u_h, u_exact, h):
+    """{'L2', 'H1'} of u_S − u_h."""
+    return measure.errors(u_h, u_exact, h)
+
+
 def forms(cfg, domain, u_h):
     """F(u_h; v) = ∫ ∇u_h·∇v − ∫ f v and J = dF/du; the contact lives in the bounds, not in F."""
     msh = domain.mesh
     v, du = ufl.TestFunction(u_h.function_space), ufl.TrialFunction(u_h.function_space)
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": compliance.QUADRATURE_DEGREE})
-    u_exact = compliance.exact_solution(cfg, msh, None)  # validated: a Signorini solution has no eps
+    u_exact = exact_solution(cfg, msh)
     f, _ = compliance.data(cfg, msh, None, u_exact, ufl.FacetNormal(msh))  # g = 0: homogeneous contact
     F = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * dx - f * v * dx
     return compliance.Forms(F, ufl.derivative(F, u_h, du), u_exact, domain.ds_c(compliance.QUADRATURE_DEGREE))

@@ -1,12 +1,13 @@
-"""Moving a P1 function between meshes of one family (0.5.2 cannot interpolate across meshes).
+"""Moving a P1 or P2 function between meshes of one family (0.5.2 cannot interpolate across meshes).
 
 No rank ever holds a mesh-sized array of another rank's data. Each rank sends its owned target dof
 points only to the ranks whose owned source cells' bounding box contains them; those evaluate the
 source where their cells contain the points and send the values back, and the lowest such rank's value
-wins. For nested meshes every target vertex lies in a source cell on which the source is affine, so the
-transfer is exact for P1. Points no source cell contains (a curved boundary) are an error, or with
-`extend` take the affine extension from the closest cell: only those few points go to every rank.
-A source on the built-in Kuhn grid of the unit square ('right' diagonal) or cube takes a fast path:
+wins. For nested meshes every target cell lies in a source cell on which the source is a polynomial of
+the target's degree, so the transfer is exact for P1 and P2. Points no source cell contains (a curved
+boundary) are an error, or with `extend` take the extension of the closest cell's polynomial: only those
+few points go to every rank.
+A P1 source on the built-in Kuhn grid of the unit square ('right' diagonal) or cube takes a fast path:
 each rank receives the source's vertex values on the grid layers its target points need, and the P1
 interpolant is evaluated in closed form (the same values, no search)."""
 import numpy as np
@@ -19,11 +20,12 @@ BOX_TOL = 1e-8  # relative padding of a rank's bounding box: its points on the b
 
 
 def transfer(u_source, V_target, extend=False):
-    """u_source (P1 on one mesh) as a Function on V_target (P1 on another mesh of the same domain).
+    """u_source (P1 or P2 on one mesh) as a Function on V_target (the same element on another mesh of the
+    same domain).
     A target point outside the source mesh is an error, or with `extend` (curved boundaries of a
-    non-nested family: an initial guess, not a measurement) takes the affine extension of u_source
-    from its closest cell."""
-    n = kuhn_grid(u_source.function_space.mesh)
+    non-nested family: an initial guess, not a measurement) takes the extension of u_source's polynomial
+    on its closest cell."""
+    n = kuhn_grid(u_source.function_space.mesh) if u_source.function_space.ufl_element().degree() == 1 else 0
     moved = kuhn_transfer(u_source, n, V_target) if n else None
     if moved is not None:
         return moved

@@ -12,6 +12,7 @@ from dolfinx import fem
 from ..config import MESH_KINDS
 from ..meshing import meshes, refinement
 from ..problems import compliance, measure
+from ..problems.registry import problem_of
 from ..solve import strategies
 from ..solve.transfer import transfer
 
@@ -41,7 +42,7 @@ class Reference:
         begin, chain, previous = time.perf_counter(), [], u_h
         for depth in range(1, self.depth + 1):
             finer = finer_domain(self.cfg, index, domain, depth, chain[-1][0] if chain else domain)
-            u_ref = fem.Function(fem.FunctionSpace(finer.mesh, ("Lagrange", 1)), name="u_ref")
+            u_ref = fem.Function(problem_of(self.cfg).space(self.cfg, finer.mesh), name="u_ref")
             outcome = solve(self.cfg, finer, u_ref, self.eps_for(level_eps, finer), previous)
             if not outcome.converged:
                 logger.warning("reference of level %d at depth %d did not converge: %s", index, depth,
@@ -68,7 +69,7 @@ class Reference:
         moved = transfer(u_h, u_ref.function_space)
         found = measure.difference_norms(moved, u_ref)
         if with_contact:
-            ds_c = domain.ds_c(measure.ERROR_DEGREE)  # the positive parts kink inside facets
+            ds_c = domain.ds_c(measure.contact_error_degree(u_ref.function_space))
             found.update(measure.contact_errors(moved, u_ref, eps_value, self.cfg.alpha, ds_c, found["H1"]))
         return {f"{name}_ref": value for name, value in found.items()}
 
@@ -89,8 +90,9 @@ def solve(cfg, domain, u, eps_value, previous):
     """The level's problem with eps = eps_value on the reference mesh, solved into u by the study's
     strategy from `previous` (a level's u_h: the nested guess); u = 0 on Γ_D (data-only scenes)."""
     eps = fem.Constant(domain.mesh, eps_value)
-    forms = compliance.forms(cfg, domain, u, eps)
-    bcs = [compliance.dirichlet_condition(u.function_space, domain, None)]
+    problem_module = problem_of(cfg)
+    forms = problem_module.forms(cfg, domain, u, eps)
+    bcs = [problem_module.dirichlet_condition(u.function_space, domain, None)]
     problem = strategies.problem(forms, u, bcs, eps, eps_value, cfg.dimension)
     # the linear floor times the level's own solve, not its reference's
     return strategies.solve(dataclasses.replace(cfg.solver, linear_floor=False), problem, previous)

@@ -8,6 +8,7 @@ from dolfinx import fem
 from .. import config
 from ..meshing import meshes
 from ..problems import compliance, measure, posed
+from ..problems.registry import problem_of
 from ..solve import solver, strategies
 from ..system import timing
 from ..analysis import verdict
@@ -32,9 +33,9 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
         levels.append(solve_level(cfg, index, n, comm, monitor, verifier, previous))
         if levels[-1].outcome.converged:
             previous = strategies.Handoff(levels[-1].solution)
-        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
-        if on_level is not None:
+        if on_level is not None:  # it sees the level's u_h (Level.solution) before it is let go
             on_level(levels)
+        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels
@@ -68,20 +69,21 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     with phases("mesh"):
         domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     mesh_peak_mb = timing.peak_memory_mb(comm)
-    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
+    problem_module = problem_of(cfg)
+    V = problem_module.space(cfg, domain.mesh)
     eps_value = cfg.epsilon(domain.h)
     eps = fem.Constant(domain.mesh, eps_value)
     u_h = fem.Function(V, name="u_h")
-    forms = compliance.forms(cfg, domain, u_h, eps)
+    forms = problem_module.forms(cfg, domain, u_h, eps)
     posed.check(cfg, domain, forms.u_exact, eps_value)  # refused before its first solve
-    bcs = [compliance.dirichlet_condition(V, domain, forms.u_exact)]
+    bcs = [problem_module.dirichlet_condition(V, domain, forms.u_exact)]
     problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
     dofs = solver.global_dofs(V)
     extra = dict(domain.columns, **problem_columns(cfg), **stability.report(cfg, problem, domain, outcome, dofs))
     with phases("errors"):
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
-        errors = measure.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
+        errors = problem_module.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
         level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
         if verifier is not None:  # Γ_C measures, reference errors
             verifier.measure(level, domain, u_h, forms)

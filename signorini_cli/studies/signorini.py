@@ -7,7 +7,7 @@ from dolfinx import fem
 
 from ..meshing import meshes
 from ..meshing.meshes import FACES_2D, FACES_3D
-from ..problems import compliance, measure, vi
+from ..problems.registry import problem_of
 from ..solve import solver
 from .level import Level
 from .refinement import compared, levels_of, parts, reported, summary, tables  # noqa: F401  the same record
@@ -27,8 +27,10 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
                                      previous, monitor)
         levels.append(level)
         previous = u_h if level.outcome.converged else previous
-        if on_level is not None:
+        if on_level is not None:  # it sees the level's u_h (Level.solution), which the next level lets go
+            level.solution = u_h
             on_level(levels)
+            level.solution = None
         if not level.outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels
@@ -36,12 +38,13 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
 
 def signorini_level(cfg, index, domain, start, previous=None, monitor=None):
     """(Level, u_h): the VI on `domain`, measured against u_S if given, with its contact state."""
-    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
+    vi = problem_of(cfg, limit=True)
+    V = vi.space(cfg, domain.mesh)
     u_h = fem.Function(V, name="u_h")
-    u_exact = compliance.exact_solution(cfg, domain.mesh, None)
-    bc = compliance.dirichlet_condition(V, domain, u_exact)
+    u_exact = vi.exact_solution(cfg, domain.mesh)
+    bc = vi.dirichlet_condition(V, domain, u_exact)
     outcome, forms = vi.solve(cfg, domain, u_h, bc, previous, monitor)
-    errors = measure.errors(u_h, u_exact, domain.h) if u_exact is not None else {}
+    errors = vi.errors(u_h, u_exact, domain.h) if u_exact is not None else {}
     state = vi.contact_state(forms, u_h, domain, bc)
     extra = {"contact_nodes": state.nodes, "contact_measure": state.measure,
              "contact_force": state.force, "pressure_max": state.pressure_max}

@@ -2,8 +2,7 @@
 the penetration max_Γc [u_h]_+, and on request the Jacobian's condition number (Level.extra columns)."""
 import math
 
-from dolfinx import fem
-
+from ..meshing.meshes import CONTACT
 from ..problems import measure
 from ..solve import solver
 from . import verification
@@ -30,8 +29,8 @@ def report(cfg, problem, domain, outcome, dofs):
 
 
 def penetration(u_h, domain):
-    """max over Γ_C of [u_h]_+ (measure.penetration: a vertex value for P1), over all ranks."""
-    dofs = fem.locate_dofs_topological(u_h.function_space, domain.mesh.topology.dim - 1, domain.facets())
+    """max over Γ_C of [u_h]_+ (measure.penetration: a vertex value for P1, a segment's maximum for P2)."""
+    dofs, _ = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
     return measure.penetration(u_h, dofs)
 
 

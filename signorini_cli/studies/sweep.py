@@ -9,7 +9,8 @@ from dolfinx import fem
 
 from ..analysis import rates
 from ..meshing import meshes
-from ..problems import compliance, measure
+from ..problems import measure
+from ..problems.registry import problem_of
 from ..solve import solver, strategies
 from .level import Figure, Table, rate_table
 from .signorini import signorini_level
@@ -67,17 +68,19 @@ def sweep_alpha(cfg, domain, u_S, alpha):
     V = u_S.function_space
     eps = fem.Constant(domain.mesh, cfg.limit.epsilon[0])
     u_h = fem.Function(V, name="u_eps_h")
-    forms = compliance.forms(dataclasses.replace(cfg, alpha=alpha), domain, u_h, eps)
-    bc = compliance.dirichlet_condition(V, domain, forms.u_exact)
+    problem_module = problem_of(cfg)
+    forms = problem_module.forms(dataclasses.replace(cfg, alpha=alpha), domain, u_h, eps)
+    bc = problem_module.dirichlet_condition(V, domain, forms.u_exact)
     problem = strategies.problem(forms, u_h, [bc], eps, cfg.limit.epsilon[0], cfg.dimension)
     gamma_c_dofs = fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, domain.facets())
+    ds_c = domain.ds_c(measure.product_degree(V))
     solved = cfg.limit.epsilon[0]
     with strategies.newton_for(cfg.solver, problem) as newton:
         for value in cfg.limit.epsilon:
             start = time.perf_counter()
             outcome = strategies.descend(newton, problem, value, cfg.solver, solved)
             solved = value if outcome.converged else solved
-            found = measure.model_differences(u_h, u_S, domain.ds_c(measure.P1_DEGREE), gamma_c_dofs)
+            found = measure.model_differences(u_h, u_S, ds_c, gamma_c_dofs)
             elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
             yield Point(domain.n, domain.h, solver.global_dofs(V), alpha, value, outcome, found, elapsed)
 

@@ -5,7 +5,8 @@ from mpi4py import MPI
 
 from ..config import names
 from ..meshing.meshes import CONTACT
-from ..problems import compliance, contact, measure
+from ..problems import contact, measure
+from ..problems.registry import problem_of
 from . import reference
 
 CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
@@ -43,7 +44,8 @@ class Verifier:
         errors = {}
         if forms.u_exact is not None and has_contact and _any_error(wanted):
             found = measure.contact_errors(u_h, forms.u_exact, level.eps, self.cfg.alpha,
-                                           domain.ds_c(measure.ERROR_DEGREE), level.errors["H1"])
+                                           domain.ds_c(measure.contact_error_degree(u_h.function_space)),
+                                           level.errors["H1"])
             errors.update({k: v for k, v in found.items() if _wanted(k, wanted)})
         # a level that did not converge gets no reference solve and is no base for differences
         if self.reference is not None and converged:
@@ -71,23 +73,31 @@ class Verifier:
         found = {}
         dofs, points = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
         if "penetration" in wanted:
-            found["penetration"] = measure.penetration(u_h, dofs.ravel())
+            found["penetration"] = measure.penetration(u_h, dofs)
         if "contact_measure" in wanted:
             found["contact_measure"] = measure.contact_measure(u_h, dofs, points)
         alpha = self.cfg.alpha
         if "contact_force" in wanted:
-            found["contact_force"] = contact.positive_power(u_h, dofs, points, alpha) / level.eps
+            found["contact_force"] = self._positive_power(u_h, domain, dofs, points, alpha) / level.eps
         if "energy" in wanted:
-            penalty = contact.positive_power(u_h, dofs, points, alpha + 1) / (alpha + 1)
+            penalty = self._positive_power(u_h, domain, dofs, points, alpha + 1) / (alpha + 1)
             found["energy"] = self._energy(level, domain, u_h, forms, penalty)
         return found
 
+    def _positive_power(self, u_h, domain, dofs, points, beta):
+        """∫_Γc [u_h]_+^beta: in closed form for P1 (the rule of the solve's own penalty term), else by the
+        Γ_C error quadrature of the element."""
+        if self.cfg.element.degree == 1:
+            return contact.positive_power(u_h, dofs, points, beta)
+        return measure.integrate(measure.positive(u_h) ** beta, domain.ds_c(measure.contact_error_degree(u_h.function_space)))
+
     def _energy(self, level, domain, u_h, forms, penalty):
         msh = domain.mesh
-        f, g = compliance.data(self.cfg, msh, level.eps, forms.u_exact, ufl.FacetNormal(msh))
-        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": compliance.QUADRATURE_DEGREE})
-        ds_c = domain.ds_c(compliance.QUADRATURE_DEGREE)  # g u_h: smooth data times P1
-        return measure.energy(u_h, compliance.on_mesh(f, msh), g, level.eps, dx, ds_c, penalty)
+        problem_module = problem_of(self.cfg)
+        f, g = problem_module.data(self.cfg, msh, level.eps, forms.u_exact, ufl.FacetNormal(msh))
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": problem_module.QUADRATURE_DEGREE})
+        ds_c = domain.ds_c(problem_module.QUADRATURE_DEGREE)  # g u_h: smooth data times u_h
+        return measure.energy(u_h, problem_module.on_mesh(f, msh), g, level.eps, dx, ds_c, penalty)
 
     def _columns(self, level, errors, quantities, wanted, has_contact):
         """Table columns in a fixed order on every level: each error and its rate, then the quantities;

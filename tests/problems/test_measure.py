@@ -9,7 +9,7 @@ from dolfinx import fem
 from signorini_cli import config
 from signorini_cli.meshing import meshes
 from signorini_cli.meshing.meshes import CONTACT
-from signorini_cli.problems import contact, measure
+from signorini_cli.problems import contact, element, measure
 from signorini_cli.studies import reference
 
 # (mesh config, linear u with {u > 0} ∩ Γ_C of known measure, that measure, max of u on Γ_C)
@@ -23,8 +23,7 @@ CASES = [
 
 
 def p1(domain, expression):
-    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
-    u = fem.Function(V)
+    u = fem.Function(element.space(domain.mesh, 1))
     u.interpolate(expression)
     return u
 
@@ -77,13 +76,15 @@ def test_contact_force_and_errors_of_a_known_function():
 
 # --- the error quadrature -------------------------------------------------------------------------
 
-@pytest.mark.parametrize("kind, n, degree", [("unit_square", 32, measure.ERROR_DEGREE),   # h = 0.044
-                                             ("unit_square", 64, measure.FINE_ERROR_DEGREE),  # h = 0.022
-                                             ("unit_cube", 32, measure.ERROR_DEGREE),     # h = 0.054
-                                             ("unit_cube", 64, measure.FINE_ERROR_DEGREE)])  # h = 0.027
-def test_error_degree_by_level(kind, n, degree):
+@pytest.mark.parametrize("kind, n, k, degree", [("unit_square", 32, 1, 8),   # h = 0.044
+                                                ("unit_square", 64, 1, 6),   # h = 0.022
+                                                ("unit_cube", 32, 1, 8),     # h = 0.054
+                                                ("unit_cube", 64, 1, 6),     # h = 0.027
+                                                ("unit_square", 32, 2, 10),
+                                                ("unit_square", 64, 2, 8)])
+def test_error_degree_by_level(kind, n, k, degree):
     domain = meshes.build(config.Mesh(kind), "bottom", n, MPI.COMM_SELF)
-    assert measure.error_degree(domain.h) == degree
+    assert measure.error_degree(element.space(domain.mesh, k), domain.h) == degree
 
 
 @pytest.mark.parametrize("comm", [pytest.param(MPI.COMM_SELF, id="serial"),
@@ -112,7 +113,7 @@ def test_integrals_together_as_one_by_one(comm, kind, n):
     x = ufl.SpatialCoordinate(domain.mesh)
     u_ex = ufl.sin(2 * np.pi * x[0]) * (1 - x[1]) ** 2
     e = p1(domain, lambda p: 1.01 * np.sin(2 * np.pi * p[0]) * (1 - p[1]) ** 2) - u_ex
-    dx = ufl.Measure("dx", domain=domain.mesh, metadata={"quadrature_degree": measure.ERROR_DEGREE})
+    dx = ufl.Measure("dx", domain=domain.mesh, metadata={"quadrature_degree": 8})
     exprs = [e**2, ufl.inner(ufl.grad(e), ufl.grad(e)), e]
     together = measure.integrate_together(domain.mesh, exprs, dx)
     assert together == pytest.approx([measure.integrate(expr, dx) for expr in exprs], rel=1e-13)

@@ -42,7 +42,7 @@ def check_reference_errors_exact(make_config, comm):
     u_ref = transfer(w, fem.FunctionSpace(finer.mesh, ("Lagrange", 1)))
     found = ref.errors(v, (finer, u_ref), 0.5, with_contact=True)
     direct = measure.difference_norms(v, w)
-    ds_c = coarse.ds_c(measure.ERROR_DEGREE)
+    ds_c = coarse.ds_c(measure.contact_error_degree(v.function_space))
     direct.update(measure.contact_errors(v, w, 0.5, cfg.alpha, ds_c, direct["H1"]))
     assert set(found) == {f"{name}_ref" for name in direct}
     for name, value in direct.items():

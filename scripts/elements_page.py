@@ -1,0 +1,189 @@
+"""docs/elements.md from the runs of configs/elements/ (`make elements`): P2 against P1 on one problem.
+
+    python scripts/elements_page.py CONFIG.yaml ... [--output RESULTS] [--out docs/elements.md]
+reads each config's results and writes the page; every number on it comes from those results."""
+import argparse
+import sys
+from pathlib import Path
+
+import provenance
+from signorini_cli import config
+from signorini_cli.analysis import rates
+from signorini_cli.report import tables
+
+COLUMNS = ("N", "h", "dofs", "newton_its", "L2", "rate_L2", "H1", "rate_H1", "pos_gc", "rate_pos_gc",
+           "contact_quadrature")
+NORMS = ("L2", "H1", "pos_gc")
+P2_RULE = config.settings.P2_CONTACT_QUADRATURE
+FIT_LEVELS = 3  # the rate fitted over the last three levels, as the study's verdict does by default
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="scripts/elements_page.py", description=__doc__.split("\n")[0])
+    parser.add_argument("configs", nargs="+", help="the configs/elements studies, already run")
+    parser.add_argument("--output", help="the results folder the studies were run with (overrides output.dir)")
+    parser.add_argument("--out", default="docs/elements.md", help="the page to write")
+    args = parser.parse_args(argv)
+    runs = [(path, config.load(path, [f"output.dir={args.output}"] if args.output else [])) for path in args.configs]
+    studies = {(cfg.element.degree, cfg.problem.exact_solves, str(cfg.contact_quadrature)):
+               (path, cfg, tables.load(cfg.output_dir).rows) for path, cfg in runs}
+    p1, p2 = studies[(1, "compliance", "exact")], studies[(2, "compliance", str(P2_RULE))]
+    checks = [v for (degree, solves, rule), v in studies.items()
+              if degree == 2 and solves == "compliance" and rule != str(P2_RULE)]
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sections = [HEADER.replace("{provenance}", provenance.line("elements", [cfg.output_dir for _, cfg in runs])),
+                study_section("P1", *p1), study_section("P2", *p2), comparison(p1, p2)]
+    sections += [quadrature_section(p2, check) for check in checks]
+    limit = [studies.get((k, "signorini", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
+    if all(limit):
+        sections.append(signorini_section(*limit, p1, p2))
+    out.write_text("\n\n".join(sections) + "\n")
+    print(f"wrote {out}")
+    return 0
+
+
+HEADER = """# P2 elements for the compliance model
+
+{provenance} Runs of `configs/elements/*.yaml`.
+The same problem, 2-D, α = 2, ε = h, u_ex = sin(2πx)(1−y)², contact on the bottom face, solved with P1 and
+with P2 Lagrange (`element: {degree: 2}`). The paper's estimates (Cor. 3.2, Lemma 4.2) are for P1; for P2
+nothing is proven, so the P2 rates below are measurements, and the verdicts of a P2 study say `not covered`.
+The P2 contact term (1/ε)∫_Γc [u_h]_+^α v is integrated by a Gauss rule (column `contact_quadrature`: its
+degree), since the exact rule integrates a piecewise linear u_h only. Norms: `L2` = ‖u − u_h‖_{L²(Ω)},
+`H1` = |u − u_h|_{H¹(Ω)}, `pos_gc` = ‖[u]_+ − [u_h]_+‖_{L³(Γ_C)} (α + 1 = 3)."""
+
+
+def study_section(label, path, cfg, rows):
+    fits = {norm: fit(rows, norm) for norm in NORMS}
+    return "\n".join([
+        f"## {label}: `{path}`",
+        "",
+        markdown(rows, COLUMNS),
+        "",
+        f"Fitted over the last {FIT_LEVELS} levels: " + ", ".join(f"{n} {rate(fits[n])}" for n in NORMS)
+        + f"; all levels converged: {yes(all(r['converged'] for r in rows))}.",
+    ])
+
+
+def comparison(p1, p2):
+    """What the rates show, in numbers: the fitted orders against the interpolation orders k + 1 (L2) and
+    k (H1) of degree k, and the finest levels' errors side by side."""
+    (_, _, rows1), (_, _, rows2) = p1, p2
+    fit1, fit2 = ({norm: fit(rows, norm) for norm in NORMS} for rows in (rows1, rows2))
+    last1, last2 = rows1[-1], rows2[-1]
+    lines = ["## What the rates show", ""]
+    for label, fits, k in (("P1", fit1, 1), ("P2", fit2, 2)):
+        lines.append(f"- {label}: L2 {rate(fits['L2'])} and H1 {rate(fits['H1'])} against the interpolation "
+                     f"orders {k + 1} and {k} of degree {k}: the penalty term (weight 1/ε = 1/h) "
+                     + ("keeps" if keeps(fits, k) else "does not keep") + " the best order the element allows"
+                     + (f" ({keeps_detail(fits, k)})." if not keeps(fits, k) else "."))
+    lines.append(f"- Γ_C: pos_gc {rate(fit1['pos_gc'])} (P1) and {rate(fit2['pos_gc'])} (P2).")
+    lines.append(f"- At N = {last2['N']}: P2 L2 {last2['L2']:.3e} and H1 {last2['H1']:.3e} with {last2['dofs']:,} "
+                 f"dofs against P1 L2 {last1['L2']:.3e} and H1 {last1['H1']:.3e} with {last1['dofs']:,} dofs.")
+    for r2 in rows2:
+        r1 = next((r for r in rows1 if r["dofs"] == r2["dofs"]), None)
+        if r1 is not None:
+            lines.append(f"- At equal dofs ({r2['dofs']:,}: P2 at N = {r2['N']}, P1 at N = {r1['N']}): P2's L2 "
+                         f"error is {r1['L2'] / r2['L2']:.0f} times smaller than P1's, its H1 error "
+                         f"{r1['H1'] / r2['H1']:.0f} times.")
+    lines.append("- The manufactured data g = ε∂_n u_ex + [u_ex]_+^α make u_ex the exact solution of the "
+                 "compliance problem at each level's ε, so these are discretisation errors of that problem; "
+                 "its distance to the Signorini solution, the model error, is not in them (the last section).")
+    return "\n".join(lines)
+
+
+def quadrature_section(p2, check):
+    """The default Gauss rule against a finer one: the relative change of every error, per level."""
+    (_, cfg, rows), (path, other, rows_other) = p2, check
+    changes = [max(abs(b[n] / a[n] - 1) for n in ("L2", "H1")) for a, b in zip(rows, rows_other)]
+    return "\n".join([
+        f"## The contact rule: degree {cfg.contact_quadrature} against degree {other.contact_quadrature}",
+        "",
+        f"`{path}` solves the P2 study with a Gauss rule of degree {other.contact_quadrature} on Γ_C. The largest "
+        f"relative change of L2 or H1 per level: " + ", ".join(
+            f"N = {r['N']}: {c:.1e}" for r, c in zip(rows, changes))
+        + f". The default rule's quadrature error is at most {max(changes):.1e} of the discretisation error.",
+    ])
+
+
+def signorini_section(p1, p2, compliance1, compliance2):
+    """Both elements against the Signorini solution u_S with the same eps = h: the total error, beside the
+    finest levels of the manufactured compliance studies (discretisation error alone)."""
+    (path1, cfg, rows1), (path2, _, rows2) = p1, p2
+    p1_last, p2_last = compliance1[2][-1], compliance2[2][-1]
+    fit1, fit2 = ({norm: fit(rows, norm) for norm in ("L2", "H1")} for rows in (rows1, rows2))
+    columns = ("N", "epsilon", "dofs", "L2", "rate_L2", "H1", "rate_H1")
+    last1, last2 = rows1[-1], rows2[-1]
+    return "\n".join([
+        "## Against the Signorini solution: the penalty's inconsistency",
+        "",
+        f"`{path1}` and `{path2}`: the same model (α = {cfg.alpha:g}, ε = h) with data f, u_D of the Signorini "
+        "solution u_S of [signorini-solution.md](signorini-solution.md) and contact data g = 0, errors "
+        "measured against u_S. The compliance model is not consistent with the Signorini problem: u_S − u_h "
+        "holds the model error u_S − u_ε, O(ε^{1/α}) by the heuristic of [limit.md](limit.md) (section 2), "
+        "besides the discretisation error.",
+        "",
+        "P1:",
+        "",
+        markdown(rows1, columns),
+        "",
+        "P2:",
+        "",
+        markdown(rows2, columns),
+        "",
+        f"Fitted over the last {FIT_LEVELS} levels: P1 L2 {rate(fit1['L2'])}, H1 {rate(fit1['H1'])}; P2 L2 "
+        f"{rate(fit2['L2'])}, H1 {rate(fit2['H1'])}, against the heuristic 1/α = {1 / cfg.alpha:.2f} of the "
+        f"model error. At N = {last2['N']} P2's L2 error is {percent(last2['L2'], last1['L2'])} of P1's and its H1 "
+        f"error {percent(last2['H1'], last1['H1'])}, where with the manufactured compliance solution above it is "
+        f"{percent(p2_last['L2'], p1_last['L2'])} and {percent(p2_last['H1'], p1_last['H1'])}: "
+        + ("with ε = h the model error, which no element reduces, sets the error of both elements."
+           if abs(last2["L2"] / last1["L2"] - 1) < 0.1 else "P2 still reduces the error against u_S."),
+    ])
+
+
+def percent(part, whole):
+    return f"{100 * part / whole:.1f} %"
+
+
+def fit(rows, norm):
+    return rates.fitted([r["h"] for r in rows], [r[norm] for r in rows], [r["converged"] for r in rows],
+                        FIT_LEVELS)
+
+
+def keeps(fits, k):
+    """Within 0.1 of both interpolation orders (the verdicts' default tolerance)."""
+    return fits["L2"] is not None and fits["H1"] is not None and fits["L2"] >= k + 0.9 and fits["H1"] >= k - 0.1
+
+
+def keeps_detail(fits, k):
+    return f"L2 short of {k + 1} by {k + 1 - fits['L2']:.2f}, H1 short of {k} by {k - fits['H1']:.2f}"
+
+
+def markdown(rows, columns):
+    """A Markdown table: errors .3e, rates .2f, '–' where undefined."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(cell(c, row.get(c)) for c in columns) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def cell(column, value):
+    if value is None:
+        return "–"
+    if column.startswith("rate_"):
+        return f"{value:.2f}"
+    if isinstance(value, float):
+        return f"{value:.3e}"
+    return str(value)
+
+
+def rate(value):
+    return "–" if value is None else f"{value:.2f}"
+
+
+def yes(flag):
+    return "yes" if flag else "no"
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,60 @@
+"""The Python API: `load` a config (a YAML file or a mapping) and `run` its study, for notebooks and
+scripts. `run` writes no files unless asked; a callback sees each level's solution before it is let go."""
+import copy
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import yaml
+from mpi4py import MPI
+
+from .. import config, studies
+from ..analysis import verdict
+from ..config import settings
+from ..record import results
+from . import guard
+
+
+@dataclass
+class Study:
+    """A finished study: its config, what the study type returned (Levels, a Sweep or a Total), its main
+    table as rows (dicts with the rates.csv columns) and, for refinement and signorini studies, its verdict."""
+    config: config.Config
+    result: object
+    rows: list
+    summary: object = None
+
+
+def load(source, **overrides):
+    """The validated Config of a YAML file (path) or a mapping, with keyword overrides: a key's dotted path
+    with `__` for the dots (mesh__refinements=[8, 16]), values as Python data. Bad input raises
+    config.ConfigError naming the key."""
+    if isinstance(source, dict):
+        raw, folder = copy.deepcopy(source), None
+    else:
+        raw, folder = config.yaml_load(settings.read_bounded(source).decode("utf-8")), Path(source).resolve().parent
+        if not isinstance(raw, dict):
+            raise config.ConfigError("", "the config must be a YAML mapping of keys to values")
+    for name, value in overrides.items():
+        settings.set_path(raw, name.replace("__", "."), value)
+    cfg = config.from_dict(raw, folder)
+    return dataclasses.replace(cfg, text=yaml.safe_dump(raw, sort_keys=False, allow_unicode=True))
+
+
+def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
+    """Run cfg's study on `comm` and return it as a Study. on_level(level, u_h), if given, is called after
+    each solve of a refinement or signorini study (total_error: of its sub-studies) with the Level and its
+    solution u_h (a dolfinx Function; the mesh is u_h.function_space.mesh), before the study lets u_h go.
+    write=True writes rates.csv, summary.csv, study.h5 in cfg.output_dir as `signorini run` does."""
+    def each(result):
+        last = list(result)[-1]
+        if getattr(last, "solution", None) is not None:
+            on_level(last, last.solution)
+
+    result = studies.run_study(cfg, on_level=each if on_level else None, comm=comm)
+    summary = verdict.summarize(cfg, result) if cfg.study_type in results.LEVEL_STUDIES else None
+    if write:
+        rows = results.write(cfg, result, comm, status=guard.status(cfg, result))
+    else:
+        rows = results.main_table(cfg, result)
+    return Study(cfg, result, rows, summary)

@@ -1,0 +1,101 @@
+"""The Python API (docs/api.md): load a config from a file or a mapping, run it without files, a callback
+that sees each level's u_h; the page's example runs as written and prints what the page says."""
+import re
+import runpy
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ufl
+from mpi4py import MPI
+
+from signorini_cli import config, load, run
+from signorini_cli.problems import measure
+from conftest import U_SIGNORINI, merge
+
+ROOT = Path(__file__).resolve().parents[2]
+DOCS = ROOT / "docs"
+WORLD = [pytest.param(MPI.COMM_SELF, id="serial"), pytest.param(MPI.COMM_WORLD, id="world", marks=pytest.mark.mpi)]
+
+
+@pytest.mark.fast
+def test_import_loads_no_dolfinx():
+    """`signorini --version` stays fast: the package's import reaches for load and run only on use."""
+    code = "import sys, signorini_cli; print('dolfinx' in sys.modules, 'petsc4py' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "False"]
+
+
+@pytest.mark.fast
+def test_load_file_and_mapping_with_overrides(raw_config, tmp_path):
+    from_file = load(ROOT / "configs" / "demo.yaml", mesh__refinements=[4, 8], epsilon__theta=0.5)
+    assert from_file.mesh.refinements == (4, 8) and from_file.epsilon.theta == 0.5 and from_file.study == "demo"
+    from_mapping = load(raw_config, **{"alpha": 3.0, "output.dir": str(tmp_path)})
+    assert from_mapping.alpha == 3.0 and from_mapping.output_dir == tmp_path / "t"
+    assert raw_config["alpha"] == 2.0  # the caller's mapping is left as it was
+
+
+@pytest.mark.fast
+def test_load_bad_input_names_the_key(raw_config):
+    with pytest.raises(config.ConfigError) as err:
+        load(raw_config, epsilon__theta=-1)
+    assert err.value.path == "epsilon.theta"
+
+
+@pytest.mark.parametrize("comm", WORLD)
+def test_run_passes_each_level_u_h_and_writes_nothing(raw_config, tmp_path, comm):
+    """The callback's u_h is the level's solution: its L2 error, measured again in the callback, is the
+    table's (the same integral: equal to round-off); no file is written without write=True."""
+    cfg = load(raw_config, output__dir=str(tmp_path / "results"))
+    seen = []
+
+    def on_level(level, u_h):
+        x = ufl.SpatialCoordinate(u_h.function_space.mesh)
+        seen.append((level.n, measure.errors(u_h, ufl.sin(2 * np.pi * x[0]) * (1 - x[1]) ** 2, level.h)["L2"]))
+
+    study = run(cfg, on_level=on_level, comm=comm)
+    assert [n for n, _ in seen] == [row["N"] for row in study.rows] == [4, 8]
+    assert [l2 for _, l2 in seen] == pytest.approx([row["L2"] for row in study.rows], rel=1e-14)
+    assert list(study.rows[0])[:12] == ["level", "N", "h", "dofs", "epsilon", "converged", "newton_its", "L2",
+                                        "rate_L2", "H1", "rate_H1", "time_s"]
+    assert study.summary is not None and not (tmp_path / "results").exists()
+
+
+def test_run_writes_when_asked(raw_config, tmp_path):
+    cfg = load(raw_config, output__dir=str(tmp_path))
+    run(cfg, comm=MPI.COMM_SELF, write=True)
+    assert (tmp_path / "t" / "rates.csv").read_text().startswith("level,N,h,dofs,epsilon,converged,newton_its,L2")
+    assert (tmp_path / "t" / "study.h5").exists()
+
+
+def check_page_example(tmp_path, monkeypatch, capsys):
+    """docs/api.md's example, run from the repository's folder, prints the page's lines (on rank 0)."""
+    text = (DOCS / "api.md").read_text()
+    (example,) = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    (expected,) = re.findall(r"```text\n(.*?)```", text, flags=re.S)
+    script = tmp_path / "example.py"
+    script.write_text(example)
+    monkeypatch.chdir(ROOT)
+    runpy.run_path(str(script), run_name="__main__")
+    assert capsys.readouterr().out == (expected if MPI.COMM_WORLD.rank == 0 else "")
+
+
+def test_api_page_example(tmp_path, monkeypatch, capsys):
+    check_page_example(tmp_path, monkeypatch, capsys)
+
+
+@pytest.mark.mpi
+def test_api_page_example_parallel(tmp_path, monkeypatch, capsys):
+    check_page_example(tmp_path, monkeypatch, capsys)
+
+
+def test_run_passes_u_h_of_a_signorini_study(raw_config, tmp_path):
+    """The VI's levels are passed too, each with its own P1 solution."""
+    raw = merge(raw_config, {"study_type": "signorini", "alpha": None, "epsilon": None,
+                             "problem": {"exact": U_SIGNORINI, "exact_solves": "signorini"}})
+    seen = []
+    study = run(load(raw, output__dir=str(tmp_path)), comm=MPI.COMM_SELF,
+                on_level=lambda level, u_h: seen.append((level.n, u_h.function_space.dofmap.index_map.size_global)))
+    assert seen == [(4, 25), (8, 81)] and [row["N"] for row in study.rows] == [4, 8]
