@@ -9,7 +9,7 @@ from pathlib import Path
 import provenance
 from signorini_cli import config
 from signorini_cli.analysis import rates
-from signorini_cli.report import tables
+from signorini_cli.record import results
 
 COLUMNS = ("N", "h", "dofs", "newton_its", "L2", "rate_L2", "H1", "rate_H1", "pos_gc", "rate_pos_gc",
            "contact_quadrature")
@@ -26,7 +26,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     runs = [(path, config.load(path, [f"output.dir={args.output}"] if args.output else [])) for path in args.configs]
     studies = {(cfg.element.degree, cfg.problem.exact_solves, str(cfg.contact_quadrature)):
-               (path, cfg, tables.load(cfg.output_dir).rows) for path, cfg in runs}
+               (path, cfg, results.load(cfg.output_dir).rows) for path, cfg in runs}
     p1, p2 = studies[(1, "compliance", "exact")], studies[(2, "compliance", str(P2_RULE))]
     checks = [v for (degree, solves, rule), v in studies.items()
               if degree == 2 and solves == "compliance" and rule != str(P2_RULE)]

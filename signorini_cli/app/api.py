@@ -9,7 +9,6 @@ import yaml
 from mpi4py import MPI
 
 from .. import config, studies
-from ..analysis import verdict
 from ..config import settings
 from ..record import results
 from . import guard
@@ -52,9 +51,10 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
             on_level(last, last.solution)
 
     result = studies.run_study(cfg, on_level=each if on_level else None, comm=comm)
-    summary = verdict.summarize(cfg, result) if cfg.study_type in results.LEVEL_STUDIES else None
+    kind = studies.of(cfg.study_type)
+    summary = kind.summary(cfg, result)
     if write:
         rows = results.write(cfg, result, comm, status=guard.status(cfg, result))
     else:
-        rows = results.main_table(cfg, result)
+        rows = results.main_rows(kind.tables(cfg, result))
     return Study(cfg, result, rows, summary)

@@ -19,8 +19,12 @@ EASY_ITS = 3  # a continuation step that took at most this many Newton iteration
 MAX_FACTOR = 0.9  # a continuation step shrunk beyond eps_{k+1}/eps_k = 0.9 is not worth taking
 DIVERGED_CONTINUATION = "DIVERGED_MAX_CONTINUATION_STEPS"
 # the residual check (checked): at most this many exact Newton steps after a solve that passed the success test.
-# From an iterate with error e ||u||, exact Newton leaves ~e^2: from 1e-2 to below POLISH_TOL in 4 steps
+# From an iterate with error e ||u||, exact Newton leaves ~e^2: from 1e-2 to below EXACT_TOL in 4 steps
 EXACT_STEPS = 5
+# the check's own bounds (the polish's, kept apart so that tuning the polish cannot move the check): an exact
+# correction <= EXACT_TOL ||u_h|| keeps the algebraic error of every reported quantity below 1e-6 of it
+EXACT_TOL = 1e-13
+EXACT_STALL = 0.5  # a correction at least half the previous one: the round-off floor is reached
 CONVERGED_EXACT = "CONVERGED_EXACT_NEWTON"  # the success test passed, but only exact Newton steps reached the root
 DIVERGED_EXACT = "DIVERGED_EXACT_NEWTON"  # ... and exact Newton steps from its iterate did not converge
 
@@ -90,8 +94,7 @@ def descend(newton, problem, eps, solver_cfg, solved_eps):
 def checked(newton, problem, outcome):
     """The residual check of a solve that passed the success test: the exact Newton correction at its
     iterate (a direct solve, or CG + AMG to linear_rtol, never the user's PETSc options) must be at most
-    POLISH_TOL ||u_h||, where the algebraic error of every reported quantity is below 1e-6 of it (see
-    solver.POLISH_TOL). The success test sees only the iterates' own steps, and a stationary or one-sweep
+    EXACT_TOL ||u_h||, where the algebraic error of every reported quantity is below 1e-6 of it. The success test sees only the iterates' own steps, and a stationary or one-sweep
     linear solver, a damped line search or a lagged Jacobian makes small steps far from the root. Else exact
     Newton steps follow, up to EXACT_STEPS, until the correction passes or stalls at its round-off floor
     (below stol ||u_h||, no longer halving: the polish's rule); the Outcome says how many it took."""
@@ -100,13 +103,13 @@ def checked(newton, problem, outcome):
     own = dataclasses.replace(newton.cfg, petsc_options=())
     options = solver.petsc_options(own, problem.dim, linear=newton.linear, dofs=newton.dofs)
     options = {key: value for key, value in options.items() if key.startswith(("ksp_", "pc_"))}
-    stol = newton.cfg.stol or solver.POLISH_TOL
+    stol = newton.cfg.stol or EXACT_TOL
     previous = None
     with newton.snes.phases("newton"):
         for taken in range(EXACT_STEPS + 1):
             delta, size, unorm = newton.snes.exact_correction(options)
-            small = size <= solver.POLISH_TOL * unorm
-            floor = previous is not None and size <= stol * unorm and size >= solver.POLISH_STALL * previous
+            small = size <= EXACT_TOL * unorm
+            floor = previous is not None and size <= stol * unorm and size >= EXACT_STALL * previous
             if small or floor or delta is None or taken == EXACT_STEPS:
                 break
             newton.snes.take(delta)

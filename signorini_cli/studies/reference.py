@@ -11,7 +11,7 @@ from dolfinx import fem
 
 from ..config import MESH_KINDS
 from ..meshing import meshes, refinement
-from ..problems import compliance, measure
+from ..problems import measure
 from ..problems.registry import problem_of
 from ..solve import strategies
 from ..solve.transfer import transfer

@@ -7,7 +7,7 @@ from dolfinx import fem
 
 from .. import config
 from ..meshing import meshes
-from ..problems import compliance, measure, posed
+from ..problems import posed
 from ..problems.registry import problem_of
 from ..solve import solver, strategies
 from ..system import timing
