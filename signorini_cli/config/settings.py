@@ -152,6 +152,11 @@ class Problem:
                                     only="only without exact")
     exact_solves: str = key("compliance", "compliance | signorini: exact is a Signorini solution u_S, g = 0 "
                                           "(docs/limit.md)")
+    pde: str = key("poisson", "poisson (the scalar model) | elasticity (docs/elasticity.md)")
+    gap: expressions.Expression = key(None, "elasticity: the initial gap g0 in x, y (z) (default 0)",
+                                      only="only with pde: elasticity")
+    normal: tuple = key(None, "elasticity: the obstacle's unit normal, d numbers (default: Γ_C's outward normal)",
+                        only="only with pde: elasticity")
 
 
 @dataclass(frozen=True)
@@ -233,6 +238,13 @@ class Output:
                               "width of a default LaTeX article)")
 
 
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear elasticity: Young's modulus and Poisson's ratio (plane strain in 2-D)."""
+    E: float = key(1.0, "Young's modulus, > 0")
+    nu: float = key(0.3, "Poisson's ratio, in (-1, 0.5)")
+
+
 @dataclass(frozen=True, kw_only=True)
 class Config:
     study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study")
@@ -252,6 +264,7 @@ class Config:
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
     study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error")
     limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)", only="only with study_type: epsilon_sweep or total_error")
+    material: Material = key(None, "elasticity: {E, nu}", only="only with problem.pde: elasticity")
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
 
     @property
@@ -270,7 +283,8 @@ class Config:
         return levels
 
 
-SECTIONS = (Config, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification, Expect, Limit)
+SECTIONS = (Config, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification, Expect, Limit,
+            Material)
 REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 
@@ -431,6 +445,7 @@ def from_dict(raw, folder=None):
     base = Config(study=study, dimension=dim, alpha=alpha, epsilon=epsilon,
                   mesh=mesh, contact=_contact(raw["contact"], mesh, dim),
                   problem=_problem(raw.get("problem"), "problem", dim), positive_part=positive,
+                  material=_material(raw, dim),
                   contact_quadrature=_contact_quadrature(top.get("contact_quadrature"), "contact_quadrature",
                                                          positive.kind),
                   solver=_solver(top.section("solver"), "solver"),
@@ -606,6 +621,11 @@ def _problem(raw, path, dim):
     if raw is None:
         raise ConfigError(path, "missing: give problem.exact (manufactured) or problem.f")
     _keys(raw, path, optional=keys_of(Problem))
+    if _choice(raw.get("pde", default(Problem, "pde")), f"{path}.pde", PDES) == "elasticity":
+        return _elastic_problem(raw, path, dim)
+    for name in ELASTIC_PROBLEM_KEYS:
+        if name in raw:
+            raise ConfigError(f"{path}.{name}", "only meaningful with problem.pde: elasticity")
     coords = COORDINATES[dim]
     exact, f, g = (_expression(raw[k], f"{path}.{k}", coords + ("eps",)) if k in raw else None
                    for k in ("exact", "f", "g"))
@@ -614,6 +634,63 @@ def _problem(raw, path, dim):
     if exact is not None and (f is not None or g is not None):
         raise ConfigError(path, "exact determines f and g; give exact alone, or f (and g) alone")
     return Problem(exact, f, g, _exact_solves(raw, path, exact))
+
+
+# --- linear elasticity (docs/elasticity.md) ----------------------------------------------------------
+
+PDES = ("poisson", "elasticity")
+ELASTIC_PROBLEM_KEYS = ("gap", "normal")
+SCALAR_PROBLEM_KEYS = ("f", "g", "exact_solves")  # data-only scenes and the VI: the scalar problem only
+
+
+def _elastic_problem(raw, path, dim):
+    """problem.exact: one expression per component of u; gap g0 (an expression, default 0); normal."""
+    for name in SCALAR_PROBLEM_KEYS:
+        if name in raw:
+            raise ConfigError(f"{path}.{name}", "only meaningful for the scalar problem (pde: poisson); "
+                                                "pde: elasticity takes exact (one expression per component)")
+    if "exact" not in raw:
+        raise ConfigError(f"{path}.exact", "missing: pde: elasticity needs a manufactured solution")
+    components = raw["exact"]
+    if not isinstance(components, list) or len(components) != dim:
+        got = f"{len(components)} components" if isinstance(components, list) else _show(components)
+        raise ConfigError(f"{path}.exact", f"must be a list of {dim} expressions (one per component of u "
+                                           f"in {dim}-D), got {got}")
+    variables = COORDINATES[dim] + ("eps",)
+    exact = tuple(_expression(c, f"{path}.exact[{i}]", variables) for i, c in enumerate(components))
+    gap = _expression(raw["gap"], f"{path}.gap", COORDINATES[dim]) if "gap" in raw else None
+    normal = _normal(raw["normal"], f"{path}.normal", dim) if "normal" in raw else None
+    return Problem(exact=exact, pde="elasticity", gap=gap, normal=normal)
+
+
+def _normal(value, path, dim):
+    """A unit vector of d numbers (normalised here; zero is refused)."""
+    if not isinstance(value, list) or len(value) != dim:
+        raise ConfigError(path, f"must be a list of {dim} numbers, got {_show(value)}")
+    n = [_number(v, f"{path}[{i}]") for i, v in enumerate(value)]
+    norm = math.sqrt(sum(v * v for v in n))
+    if norm == 0:
+        raise ConfigError(path, "must not be zero")
+    return tuple(v / norm for v in n)
+
+
+def _material(raw, dim):
+    """material: {E, nu} for pde: elasticity (E > 0, -1 < nu < 1/2: the Lamé λ, μ finite and positive)."""
+    problem = raw.get("problem")
+    elastic = isinstance(problem, dict) and problem.get("pde") == "elasticity"
+    if not elastic:
+        if "material" in raw:
+            raise ConfigError("material", "only meaningful with problem.pde: elasticity")
+        return None
+    given = raw.get("material", {})
+    _keys(given, "material", optional=keys_of(Material))
+    s = _Section(given, "material", Material)
+    E, nu = s.number("E"), s.number("nu")
+    if E <= 0:
+        raise ConfigError("material.E", f"must be > 0, got {E:g}")
+    if not -1 < nu < 0.5:
+        raise ConfigError("material.nu", f"must be in (-1, 0.5) (λ and μ finite and positive), got {nu:g}")
+    return Material(E, nu)
 
 
 def _positive_part(raw, path, epsilon):
@@ -808,6 +885,9 @@ def _study_type(cfg, raw):
     for key, hint in UNUSED[kind].items():
         if key in raw:
             raise ConfigError(key, f"not used by study_type {kind}{hint}")
+    if cfg.problem.pde == "elasticity":
+        raise ConfigError("study_type", f"{kind} solves the scalar Signorini problem; pde: elasticity "
+                                        "runs refinement studies")
     _signorini_problem(cfg.problem, kind)
     if kind != "total_error" and cfg.output.fields:
         raise ConfigError("output.fields", f"not written by study_type {kind} (refinement and total_error only)")

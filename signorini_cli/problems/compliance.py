@@ -8,7 +8,7 @@ from dolfinx import fem
 
 from ..config import expressions
 from ..meshing.meshes import CONTACT, DIRICHLET
-from . import contact
+from . import contact, element, measure
 
 QUADRATURE_DEGREE = 6  # data terms (sin, exp ...); on Γ_C too with contact_quadrature: <degree> (6 before issue 17)
 
@@ -32,6 +32,18 @@ class Forms:
     ds_c: ufl.Measure
     split: Split = None
     contact: object = None  # contact.ContactTerm: Γ_C terms integrated beside UFL (contact_quadrature exact, vertex)
+    near_nullspace: object = None  # PETSc.NullSpace the AMG preconditioner coarsens against (elasticity: rigid motions)
+    gap: object = None  # (w_h, w_ex): the Γ_C quantity the contact measures read, when it is not u_h itself
+
+
+def space(cfg, msh):
+    """P1 Lagrange: the paper's V_h."""
+    return element.space(msh, 1)
+
+
+def errors(u_h, u_exact, h):
+    """L2 and H1 (seminorm) of u_ex − u_h (measure.errors)."""
+    return measure.errors(u_h, u_exact, h)
 
 
 def positive_part(u, positive, h, eps):

@@ -5,7 +5,7 @@ from mpi4py import MPI
 from dolfinx import fem
 
 from ..meshing import meshes
-from ..problems import compliance, measure
+from ..problems.registry import problem_of
 from ..solve import solver, strategies
 from ..system import timing
 from . import fields, stability, verification
@@ -62,19 +62,20 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     with phases("mesh"):
         domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     mesh_peak_mb = timing.peak_memory_mb(comm)
-    V = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
+    model = problem_of(cfg)
+    V = model.space(cfg, domain.mesh)
     eps_value = cfg.epsilon(domain.h)
     eps = fem.Constant(domain.mesh, eps_value)
     u_h = fem.Function(V, name="u_h")
-    forms = compliance.forms(cfg, domain, u_h, eps)
-    bcs = [compliance.dirichlet_condition(V, domain, forms.u_exact)]
+    forms = model.forms(cfg, domain, u_h, eps)
+    bcs = [model.dirichlet_condition(V, domain, forms.u_exact)]
     problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
     dofs = solver.global_dofs(V)
     extra = dict(domain.columns, **problem_columns(cfg), **stability.report(cfg, problem, domain, outcome, dofs))
     with phases("errors"):
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
-        errors = measure.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
+        errors = model.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
         level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
         if verifier is not None:  # Γ_C measures, reference errors (issue 4)
             verifier.measure(level, domain, u_h, forms)
