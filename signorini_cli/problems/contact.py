@@ -296,7 +296,8 @@ class ContactTerm:
     @property
     def rows(self):
         """The local dof indices the term touches, (facets, (n+1) bs): vertex-major, component-minor."""
-        return (self.bs * self.dofs[:, :, None] + np.arange(self.bs)).reshape(len(self.dofs), -1)
+        rows = self.bs * self.dofs[:, :, None] + np.arange(self.bs)
+        return rows.reshape(len(self.dofs), self.dofs.shape[1] * self.bs)
 
     def values(self, u):
         """w at the facets' vertices (facets, n+1) from the local array u: u itself, or u·n − g0."""
@@ -346,7 +347,7 @@ class ContactTerm:
         """b += the residual at u_h (local array, ghosts included: before b's reverse ghost update)."""
         r = self.residual(self.u_h.x.array)
         if self.normal is not None:  # the test function's normal component: r_i n_k at dof (i, k)
-            r = (r[:, :, None] * self.normal[:, None, :]).reshape(len(r), -1)
+            r = (r[:, :, None] * self.normal[:, None, :]).reshape(self.rows.shape)
         np.add.at(b, self.rows, r)
 
     def add_jacobian(self, A, fixed):
@@ -368,7 +369,8 @@ class ContactTerm:
             return J
         nn = self.normal[:, :, None] * self.normal[:, None, :]  # (facets, d, d)
         blocks = J[:, :, None, :, None] * nn[:, None, :, None, :]  # (facets, i, k, j, l)
-        return blocks.reshape(len(J), J.shape[1] * self.bs, -1)
+        size = J.shape[1] * self.bs
+        return blocks.reshape(len(J), size, size)
 
 
 def canonical(rule, u_fn, alpha, points):
