@@ -882,12 +882,12 @@ def _study_type(cfg, raw):
         if "limit" in raw:
             raise ConfigError("limit", "only meaningful with study_type epsilon_sweep or total_error")
         return cfg
-    for key, hint in UNUSED[kind].items():
-        if key in raw:
-            raise ConfigError(key, f"not used by study_type {kind}{hint}")
     if cfg.problem.pde == "elasticity":
         raise ConfigError("study_type", f"{kind} solves the scalar Signorini problem; pde: elasticity "
                                         "runs refinement studies")
+    for key, hint in UNUSED[kind].items():
+        if key in raw:
+            raise ConfigError(key, f"not used by study_type {kind}{hint}")
     _signorini_problem(cfg.problem, kind)
     if kind != "total_error" and cfg.output.fields:
         raise ConfigError("output.fields", f"not written by study_type {kind} (refinement and total_error only)")
