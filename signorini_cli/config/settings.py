@@ -453,7 +453,7 @@ def from_dict(raw, folder=None):
                   verification=_verification(top.section("verification"), "verification", raw.get("problem")),
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=top.string("description", empty=True))
-    return _study_type(_check_geometry_mesh(base, raw), raw)
+    return _study_type(_check_geometry_mesh(_elastic_verification(base, raw), raw), raw)
 
 
 def _dimension(value, mesh):
@@ -649,18 +649,38 @@ def _elastic_problem(raw, path, dim):
         if name in raw:
             raise ConfigError(f"{path}.{name}", "only meaningful for the scalar problem (pde: poisson); "
                                                 "pde: elasticity takes exact (one expression per component)")
-    if "exact" not in raw:
-        raise ConfigError(f"{path}.exact", "missing: pde: elasticity needs a manufactured solution")
-    components = raw["exact"]
-    if not isinstance(components, list) or len(components) != dim:
-        got = f"{len(components)} components" if isinstance(components, list) else _show(components)
-        raise ConfigError(f"{path}.exact", f"must be a list of {dim} expressions (one per component of u "
-                                           f"in {dim}-D), got {got}")
-    variables = COORDINATES[dim] + ("eps",)
-    exact = tuple(_expression(c, f"{path}.exact[{i}]", variables) for i, c in enumerate(components))
+    exact = _components(raw["exact"], f"{path}.exact", dim) if "exact" in raw else None  # None: f = 0, ĝ = 0
     gap = _expression(raw["gap"], f"{path}.gap", COORDINATES[dim]) if "gap" in raw else None
     normal = _normal(raw["normal"], f"{path}.normal", dim) if "normal" in raw else None
     return Problem(exact=exact, pde="elasticity", gap=gap, normal=normal)
+
+
+def _components(value, path, dim):
+    """A list of d expressions in x, y (z), eps: one per component of u."""
+    if not isinstance(value, list) or len(value) != dim:
+        got = f"{len(value)} components" if isinstance(value, list) else _show(value)
+        raise ConfigError(path, f"must be a list of {dim} expressions (one per component of u in {dim}-D), got {got}")
+    return tuple(_expression(c, f"{path}[{i}]", COORDINATES[dim] + ("eps",)) for i, c in enumerate(value))
+
+
+ELASTIC_DATA_MEASURES = ("penetration", "contact_measure", "contact_force")
+
+
+def _elastic_verification(cfg, raw):
+    """The physical elastic problem (no problem.exact) measures Γ_C quantities only: no reference
+    solution and no successive differences of vector fields."""
+    if cfg.problem.pde != "elasticity" or cfg.problem.exact is not None:
+        return cfg
+    v, given = cfg.verification, raw.get("verification", {})
+    if given.get("reference_refinements", 0) != 0:
+        raise ConfigError("verification.reference_refinements", "pde: elasticity without problem.exact has no "
+                                                                "reference solution: set 0")
+    measures = v.measures if v.measures is not None else ELASTIC_DATA_MEASURES
+    for i, m in enumerate(measures):
+        if m not in ELASTIC_DATA_MEASURES:
+            raise ConfigError(f"verification.measures[{i}]", f"pde: elasticity without problem.exact measures "
+                                                            f"{', '.join(ELASTIC_DATA_MEASURES)}, not {m}")
+    return dataclasses.replace(cfg, verification=dataclasses.replace(v, measures=measures, reference_refinements=0))
 
 
 def _normal(value, path, dim):

@@ -82,17 +82,18 @@ def forms(cfg, domain, u_h, eps):
     ds_c = domain.ds_c(rule if isinstance(rule, int) else QUADRATURE_DEGREE)
     n = ufl.as_vector(cfg.problem.normal) if cfg.problem.normal is not None else ufl.FacetNormal(msh)
     x = ufl.SpatialCoordinate(msh)
-    u_ex = exact_solution(cfg, msh, eps)
+    u_ex = exact_solution(cfg, msh, eps) if cfg.problem.exact is not None else None
     g0 = gap(cfg, x, expressions.ufl_functions())
-    w_h, w_ex = ufl.dot(u_h, n) - g0, ufl.dot(u_ex, n) - g0
+    w_h = ufl.dot(u_h, n) - g0
+    w_ex = ufl.dot(u_ex, n) - g0 if u_ex is not None else None
     term = contact_term(cfg, domain, u_h, eps)
     exact_pp = type(cfg.positive_part)()  # the data use the exact positive part: u_ex solves the exact model
     q = 0 if term is not None and term.penalty else compliance.compliance(
         w_h, cfg.alpha, cfg.positive_part, fem.Constant(msh, domain.h), eps)
-    kink = 0 if term is not None and term.u_exact is not None else compliance.compliance(
+    kink = 0 if u_ex is None or (term is not None and term.u_exact is not None) else compliance.compliance(
         w_ex, cfg.alpha, exact_pp, None, eps)
     stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # P1: exact at degree 0
-    load = ufl.dot(-ufl.div(sigma(u_ex, mu, lmbda)), v) * dx + ufl.dot(ufl.dot(sigma(u_ex, mu, lmbda), n), v) * ds_c
+    load = load_form(u_ex, v, n, mu, lmbda, dx, ds_c)
     varying = stiffness
     if not (_is_zero(q) and _is_zero(kink)):
         varying = stiffness + (q - kink) / eps * ufl.dot(v, n) * ds_c
@@ -102,6 +103,14 @@ def forms(cfg, domain, u_h, eps):
     energy = lambda e: ufl.inner(sigma(e, mu, lmbda), strain(e))  # noqa: E731
     return Forms(F, ufl.derivative(F, u_h, du), u_ex, ds_c, split, term, near_nullspace=rigid_motions(V),
                  gap=Gap(w_h, w_ex, energy, term or contact_term(cfg, domain, u_h, eps, measuring=True)))
+
+
+def load_form(u_ex, v, n, mu, lmbda, dx, ds_c):
+    """∫ f·v + ∫_Γc σ(u_ex)n·v with f = −div σ(u_ex); the physical problem (no u_ex): f = 0, ĝ = 0."""
+    if u_ex is None:
+        return ufl.inner(fem.Constant(v.ufl_function_space().mesh, np.zeros(len(v))), v) * dx
+    s = sigma(u_ex, mu, lmbda)
+    return ufl.dot(-ufl.div(s), v) * dx + ufl.dot(ufl.dot(s, n), v) * ds_c
 
 
 def _is_zero(value):
@@ -120,7 +129,8 @@ def contact_term(cfg, domain, u_h, eps, measuring=False):
     if cfg.problem.normal is not None:
         normal = np.broadcast_to(np.array(cfg.problem.normal), normal.shape)
     n_c = common_normal(domain.mesh.comm, normal)
-    u_fn = numpy_gap(cfg, n_c) if n_c is not None and not measuring else None
+    kinked = cfg.problem.exact is not None and n_c is not None and not measuring
+    u_fn = numpy_gap(cfg, n_c) if kinked else None
     penalty = cfg.positive_part.kind == "exact" and not measuring
     term = contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, "exact" if measuring else rule,
                                penalty, u_fn, normal=np.ascontiguousarray(normal))
