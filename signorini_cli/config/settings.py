@@ -668,11 +668,15 @@ ELASTIC_DATA_MEASURES = ("penetration", "contact_measure", "contact_force")
 
 def _elastic_verification(cfg, raw):
     """The physical elastic problem (no problem.exact) measures Γ_C quantities only: no reference
-    solution and no successive differences of vector fields."""
-    if cfg.problem.pde != "elasticity" or cfg.problem.exact is not None:
+    solution and no successive differences of vector fields; fields are written for the scalar problem."""
+    if cfg.problem.pde != "elasticity":
+        return cfg
+    if cfg.output.fields:
+        raise ConfigError("output.fields", "written for the scalar problem only (pde: poisson)")
+    if cfg.problem.exact is not None:
         return cfg
     v, given = cfg.verification, raw.get("verification", {})
-    if given.get("reference_refinements", 0) != 0:
+    if given.get("reference_refinements") not in (None, 0):
         raise ConfigError("verification.reference_refinements", "pde: elasticity without problem.exact has no "
                                                                 "reference solution: set 0")
     measures = v.measures if v.measures is not None else ELASTIC_DATA_MEASURES
