@@ -23,7 +23,8 @@ CUBE = {"dimension": 3, "mesh": {"kind": "unit_cube", "refinements": [2, 4]},
 
 
 def elastic_config(tmp_path, dim=2, **changes):
-    raw = merge(merge(BASE, ELASTIC if dim == 2 else merge(ELASTIC, CUBE)), dict(changes, output={"dir": str(tmp_path)}))
+    scene = ELASTIC if dim == 2 else merge(ELASTIC, CUBE)
+    raw = merge(merge(BASE, scene), dict(changes, output={"dir": str(tmp_path)}))
     return config.loads(yaml.safe_dump(raw))
 
 
@@ -37,7 +38,8 @@ def test_elastic_config_reads_components_material_gap(tmp_path):
 
 
 BAD = [
-    pytest.param({"problem": {"exact": EXACT_2D[:1]}}, "problem.exact: must be a list of 2 expressions", id="one-component"),
+    pytest.param({"problem": {"exact": EXACT_2D[:1]}}, "problem.exact: must be a list of 2 expressions",
+                 id="one-component"),
     pytest.param({"problem": {"exact": EXACT_3D}}, "problem.exact: must be a list of 2 expressions", id="three-in-2d"),
     pytest.param({"problem": {"exact": "x*y"}}, "problem.exact: must be a list of 2 expressions", id="scalar-string"),
     pytest.param({"problem": {"exact": ["x", "q"]}}, "problem.exact[1]:", id="bad-component"),
@@ -51,8 +53,8 @@ BAD = [
                  id="exact-solves-on-elastic"),
     pytest.param({"problem": {"normal": [0, 0]}}, "problem.normal: must not be zero", id="normal-zero"),
     pytest.param({"problem": {"pde": "stokes"}}, "problem.pde: 'stokes' is not one of poisson, elasticity", id="pde"),
-    pytest.param({"study_type": "signorini", "problem": {"pde": "elasticity"}}, "study_type: signorini solves the scalar",
-                 id="vi-on-elastic"),
+    pytest.param({"study_type": "signorini", "problem": {"pde": "elasticity"}},
+                 "study_type: signorini solves the scalar", id="vi-on-elastic"),
 ]
 SCALAR_BAD = [
     pytest.param({"material": {"E": 1.0}}, "material: only meaningful with problem.pde: elasticity", id="material"),
