@@ -1108,6 +1108,8 @@ def to_dict(cfg):
     if cfg.problem.exact is not None:  # the reference keys are for data-only scenes (rejected otherwise)
         for key in ("reference_refinements", "reference_epsilon"):
             out["verification"].pop(key)
+    if cfg.problem.pde == "elasticity":
+        out["problem"].pop("exact_solves")  # a key of the scalar problem (rejected otherwise)
     if cfg.expect is not None:
         out["expect"]["rates"] = dict(cfg.expect.rates)
     if cfg.solver.method != "newtonls":  # the line search is for newtonls only (rejected otherwise)

@@ -1,5 +1,7 @@
 """The elastic problem: its config keys and bad input, the contact term on a vector space against UFL,
 the facet normals, and the rigid motions AMG is given."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import ufl
@@ -35,6 +37,14 @@ def test_elastic_config_reads_components_material_gap(tmp_path):
     assert cfg.problem.pde == "elasticity" and len(cfg.problem.exact) == 2
     assert (cfg.material.E, cfg.material.nu) == (200.0, 0.25)
     assert cfg.problem.normal == (0.0, -1.0)  # normalised
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("name", ("square-alpha2.yaml", "hertz.yaml"))
+def test_elastic_config_round_trips(name):
+    """to_dict writes what from_dict reads back to the same settings (resume and `signorini init` rely on it)."""
+    cfg = config.load(Path(__file__).resolve().parents[2] / "configs" / "elasticity" / name)
+    assert config.fingerprint(config.from_dict(config.to_dict(cfg))) == config.fingerprint(cfg)
 
 
 BAD = [
