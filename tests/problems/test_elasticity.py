@@ -123,7 +123,8 @@ def test_facet_normals_bottom_face(tmp_path, dim):
 
 
 @pytest.mark.parametrize("alpha", (2.0, 3.0))
-@pytest.mark.parametrize("dim", (2, 3))
+@pytest.mark.parametrize("dim", (2, 3, pytest.param(2, marks=pytest.mark.mpi, id="2-mpi"),
+                                 pytest.param(3, marks=pytest.mark.mpi, id="3-mpi")))
 def test_vector_contact_term_equals_ufl_where_polynomial(tmp_path, dim, alpha):
     """With w_h = u_h·n − g0 > 0 on all of Γ_C, [w_h]_+^alpha v·n is a polynomial of degree alpha + 1 on
     each facet for integer alpha: UFL's Gauss rule of that degree is exact, so residual and Jacobian of

@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
+from dolfinx import fem
+
 from signorini_cli import config, studies
 from signorini_cli.analysis import verdict
+from signorini_cli.meshing import meshes
+from signorini_cli.problems import elasticity
+from signorini_cli.solve import transfer
 
 CONFIGS = Path(__file__).resolve().parents[2] / "configs" / "elasticity"
 MEASURED = ("L2", "H1", "L2_gc", "pos_gc", "energy_err", "penetration", "contact_measure", "contact_force")
@@ -67,6 +72,24 @@ def test_gamg_with_rigid_motions_takes_few_iterations(tmp_path):
     (level,) = studies.run_study(cfg, comm=MPI.COMM_SELF)
     assert level.outcome.converged and not level.outcome.linear_fallback
     assert level.outcome.linear_its < 30 * level.outcome.newton_its
+
+
+@pytest.mark.parametrize("dim", (2, 3, pytest.param(2, marks=pytest.mark.mpi, id="2-mpi"),
+                                 pytest.param(3, marks=pytest.mark.mpi, id="3-mpi")))
+def test_nested_iteration_moves_vector_fields_exactly(tmp_path, dim):
+    """transfer moves a vector P1 function component by component: exact on nested meshes (u affine)."""
+    cfg = load("square-alpha2.yaml" if dim == 2 else "cube-alpha2.yaml", tmp_path)
+    spaces = []
+    for n in (2, 4):
+        domain = meshes.build(cfg.mesh, cfg.contact, n, MPI.COMM_WORLD)
+        spaces.append(elasticity.space(cfg, domain.mesh))
+    affine = lambda x: np.stack([1 + 2 * x[0] - x[1], 3 * x[1] + x[dim - 1], x[0] - 4 * x[2]][:dim])  # noqa: E731
+    coarse, fine = fem.Function(spaces[0]), fem.Function(spaces[1])
+    coarse.interpolate(affine)
+    fine.interpolate(affine)
+    moved = transfer.transfer(coarse, spaces[1])
+    local = np.abs(moved.x.array - fine.x.array).max(initial=0.0)
+    assert MPI.COMM_WORLD.allreduce(local, op=MPI.MAX) <= 1e-14  # round-off of values of size ~5
 
 
 def run_both(tmp_path, name, refinements):
