@@ -276,8 +276,9 @@ class ContactTerm:
     """(1/eps)∫_Γc [w_h]_+^alpha v (penalty) minus (1/eps)∫_Γc [w_ex]_+^alpha v (data) on the rank's owned
     Γ_C facets (each counted once under MPI), integrated by `rule`: exact (the P1 integrals in closed
     form, the data by adaptive rules) or vertex (lumped: (1/eps) psi(w_i) ∫ lambda_i). On a scalar space
-    w = u; on a vector space w = u·n − g0 with `normal` (facets, d), constant per facet, and `gap` g0 at
-    the facets' vertices (facets, n+1), so that w_h is linear on each facet and the same rules are exact;
+    w = u; on a vector space w = u·n − g0 with `normal` (facets, d), constant per facet, and `gap` g0 taken
+    at the facets' vertices (gap(points) of the (facets, n+1, 3) points), so that w_h is linear on each facet
+    and the same rules are exact;
     the test function is then v·n. `penalty` False leaves the penalty to UFL (the smooth positive part);
     `u_exact(points, eps)` evaluates w_ex in numpy (None: no kinked data term). `eps` is the forms'
     Constant, read at every evaluation."""
@@ -290,7 +291,7 @@ class ContactTerm:
         self.alpha, self.eps, self.rule, self.penalty, self.u_exact = alpha, eps, rule, penalty, u_exact
         self.bs = u_h.function_space.dofmap.index_map_bs
         self.normal = normal
-        self.gap = np.zeros(self.dofs.shape) if gap is None else gap
+        self.gap = np.zeros(self.dofs.shape) if gap is None else np.broadcast_to(gap(self.points), self.dofs.shape)
         self._data, self._data_eps = None, None
 
     @property

@@ -132,10 +132,9 @@ def contact_term(cfg, domain, u_h, eps, measuring=False):
     kinked = cfg.problem.exact is not None and n_c is not None and not measuring
     u_fn = numpy_gap(cfg, n_c) if kinked else None
     penalty = cfg.positive_part.kind == "exact" and not measuring
-    term = contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, "exact" if measuring else rule,
-                               penalty, u_fn, normal=np.ascontiguousarray(normal))
-    term.gap = gap(cfg, np.moveaxis(term.points, -1, 0), expressions.numpy_functions()) * np.ones(term.dofs.shape)
-    return term
+    g0 = lambda points: gap(cfg, np.moveaxis(points, -1, 0), expressions.numpy_functions())  # noqa: E731
+    return contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, "exact" if measuring else rule,
+                               penalty, u_fn, normal=np.ascontiguousarray(normal), gap=g0)
 
 
 def owned_contact_facets(domain):
