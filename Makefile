@@ -159,3 +159,14 @@ results-format: docs/results-format.md
 docs/results-format.md: scripts/results_format_page.py scripts/provenance.py signorini_cli/record/h5.py $(PACKAGE) | $(STAMP)
 	$(PY) scripts/results_format_page.py > $@.tmp
 	@mv $@.tmp $@; echo "wrote $@"
+
+.PHONY: elasticity bench-elasticity
+# Linear elasticity (docs/elasticity.md): configs/elasticity's manufactured studies, the stiff case and the Hertz
+# benchmark (h -> 0 and eps -> 0), run by the script that writes the page from them
+ELASTIC_CONFIGS := $(sort $(wildcard configs/elasticity/*.yaml))
+elasticity: docs/elasticity.md
+docs/elasticity.md: scripts/elasticity_page.py scripts/provenance.py $(ELASTIC_CONFIGS) $(PACKAGE) | $(STAMP)
+	$(PY) scripts/elasticity_page.py --out $@
+# the elastic section of bench/results.md: Newton time against the linear floor, 2-D up to N = 256, 3-D 32^3
+bench-elasticity: setup
+	$(PY) scripts/elasticity_page.py --bench

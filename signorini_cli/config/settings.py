@@ -155,6 +155,11 @@ class Problem:
                                           "(docs/limit.md)")
     define: tuple = key((), "named subexpressions, in order (later names may use earlier ones)",
                         example={"r": "sqrt(x**2 + y**2)", "t": "atan2(y, x)"}, only="optional")
+    pde: str = key("poisson", "poisson (the scalar model) | elasticity (docs/elasticity.md)")
+    gap: expressions.Expression = key(None, "elasticity: the initial gap g0 in x, y (z) (default 0)",
+                                      only="only with pde: elasticity")
+    normal: tuple = key(None, "elasticity: the obstacle's unit normal, d numbers (default: Γ_C's outward normal)",
+                        only="only with pde: elasticity")
 
 
 @dataclass(frozen=True)
@@ -249,6 +254,13 @@ class Element:
 P2_CONTACT_QUADRATURE = 8
 
 
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear elasticity: Young's modulus and Poisson's ratio (plane strain in 2-D)."""
+    E: float = key(1.0, "Young's modulus, > 0")
+    nu: float = key(0.3, "Poisson's ratio, in (-1, 0.5)")
+
+
 @dataclass(frozen=True, kw_only=True)
 class Config:
     study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study")
@@ -272,6 +284,7 @@ class Config:
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
     study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error")
     limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)", only="only with study_type: epsilon_sweep or total_error")
+    material: Material = key(None, "elasticity: {E, nu}", only="only with problem.pde: elasticity")
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
 
     @property
@@ -291,7 +304,7 @@ class Config:
 
 
 SECTIONS = (Config, Element, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification,
-            Expect, Limit)
+            Expect, Limit, Material)
 REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 
@@ -458,6 +471,7 @@ def from_dict(raw, folder=None):
     base = Config(study=study, dimension=dim, alpha=alpha, epsilon=epsilon,
                   mesh=mesh, contact=_contact(raw["contact"], mesh, dim),
                   problem=_problem(raw.get("problem"), "problem", dim), positive_part=positive,
+                  material=_material(raw, dim),
                   contact_quadrature=_contact_quadrature(top.get("contact_quadrature"), "contact_quadrature",
                                                          positive.kind),
                   solver=_solver(top.section("solver"), "solver"),
@@ -466,7 +480,7 @@ def from_dict(raw, folder=None):
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=top.string("description", empty=True), outside_theory=outside,
                   element=_element(top.section("element"), "element"))
-    return _check_element(_study_type(_check_geometry_mesh(base, raw), raw), raw)
+    return _check_element(_study_type(_check_geometry_mesh(_elastic_verification(base, raw), raw), raw), raw)
 
 
 def _dimension(value, mesh):
@@ -661,6 +675,11 @@ def _problem(raw, path, dim):
     if raw is None:
         raise ConfigError(path, "missing: give problem.exact (manufactured) or problem.f")
     _keys(raw, path, optional=keys_of(Problem))
+    if _choice(raw.get("pde", default(Problem, "pde")), f"{path}.pde", PDES) == "elasticity":
+        return _elastic_problem(raw, path, dim)
+    for name in ELASTIC_PROBLEM_KEYS:
+        if name in raw:
+            raise ConfigError(f"{path}.{name}", "only meaningful with problem.pde: elasticity")
     coords = COORDINATES[dim]
     defined = _define(raw.get("define", {}), f"{path}.define", coords + ("eps",))
     exact, f, g = (_expression(raw[k], f"{path}.{k}", coords + ("eps",), defined) if k in raw else None
@@ -680,6 +699,87 @@ def _define(raw, path, variables):
         return expressions.definitions(raw, variables)
     except expressions.ExpressionError as err:
         raise ConfigError(path, str(err)) from None
+
+
+# --- linear elasticity (docs/elasticity.md) ----------------------------------------------------------
+
+PDES = ("poisson", "elasticity")
+ELASTIC_PROBLEM_KEYS = ("gap", "normal")
+SCALAR_PROBLEM_KEYS = ("f", "g", "exact_solves")  # data-only scenes and the VI: the scalar problem only
+
+
+def _elastic_problem(raw, path, dim):
+    """problem.exact: one expression per component of u; gap g0 (an expression, default 0); normal."""
+    for name in SCALAR_PROBLEM_KEYS:
+        if name in raw:
+            raise ConfigError(f"{path}.{name}", "only meaningful for the scalar problem (pde: poisson); "
+                                                "pde: elasticity takes exact (one expression per component)")
+    exact = _components(raw["exact"], f"{path}.exact", dim) if "exact" in raw else None  # None: f = 0, ĝ = 0
+    gap = _expression(raw["gap"], f"{path}.gap", COORDINATES[dim]) if "gap" in raw else None
+    normal = _normal(raw["normal"], f"{path}.normal", dim) if "normal" in raw else None
+    return Problem(exact=exact, pde="elasticity", gap=gap, normal=normal)
+
+
+def _components(value, path, dim):
+    """A list of d expressions in x, y (z), eps: one per component of u."""
+    if not isinstance(value, list) or len(value) != dim:
+        got = f"{len(value)} components" if isinstance(value, list) else _show(value)
+        raise ConfigError(path, f"must be a list of {dim} expressions (one per component of u in {dim}-D), got {got}")
+    return tuple(_expression(c, f"{path}[{i}]", COORDINATES[dim] + ("eps",)) for i, c in enumerate(value))
+
+
+ELASTIC_DATA_MEASURES = ("penetration", "contact_measure", "contact_force")
+
+
+def _elastic_verification(cfg, raw):
+    """The physical elastic problem (no problem.exact) measures Γ_C quantities only: no reference
+    solution and no successive differences of vector fields; fields are written for the scalar problem."""
+    if cfg.problem.pde != "elasticity":
+        return cfg
+    if cfg.output.fields:
+        raise ConfigError("output.fields", "written for the scalar problem only (pde: poisson)")
+    if cfg.problem.exact is not None:
+        return cfg
+    v, given = cfg.verification, raw.get("verification", {})
+    if given.get("reference_refinements") not in (None, 0):
+        raise ConfigError("verification.reference_refinements", "pde: elasticity without problem.exact has no "
+                                                                "reference solution: set 0")
+    measures = v.measures if v.measures is not None else ELASTIC_DATA_MEASURES
+    for i, m in enumerate(measures):
+        if m not in ELASTIC_DATA_MEASURES:
+            raise ConfigError(f"verification.measures[{i}]", f"pde: elasticity without problem.exact measures "
+                                                            f"{', '.join(ELASTIC_DATA_MEASURES)}, not {m}")
+    return dataclasses.replace(cfg, verification=dataclasses.replace(v, measures=measures, reference_refinements=0))
+
+
+def _normal(value, path, dim):
+    """A unit vector of d numbers (normalised here; zero is refused)."""
+    if not isinstance(value, list) or len(value) != dim:
+        raise ConfigError(path, f"must be a list of {dim} numbers, got {_show(value)}")
+    n = [_number(v, f"{path}[{i}]") for i, v in enumerate(value)]
+    norm = math.sqrt(sum(v * v for v in n))
+    if norm == 0:
+        raise ConfigError(path, "must not be zero")
+    return tuple(v / norm for v in n)
+
+
+def _material(raw, dim):
+    """material: {E, nu} for pde: elasticity (E > 0, -1 < nu < 1/2: the Lamé λ, μ finite and positive)."""
+    problem = raw.get("problem")
+    elastic = isinstance(problem, dict) and problem.get("pde") == "elasticity"
+    if not elastic:
+        if "material" in raw:
+            raise ConfigError("material", "only meaningful with problem.pde: elasticity")
+        return None
+    given = raw.get("material", {})
+    _keys(given, "material", optional=keys_of(Material))
+    s = _Section(given, "material", Material)
+    E, nu = s.number("E"), s.number("nu")
+    if E <= 0:
+        raise ConfigError("material.E", f"must be > 0, got {E:g}")
+    if not -1 < nu < 0.5:
+        raise ConfigError("material.nu", f"must be in (-1, 0.5) (λ and μ finite and positive), got {nu:g}")
+    return Material(E, nu)
 
 
 def _positive_part(raw, path, epsilon):
@@ -878,6 +978,9 @@ def _study_type(cfg, raw):
         if "limit" in raw:
             raise ConfigError("limit", "only meaningful with study_type epsilon_sweep or total_error")
         return cfg
+    if cfg.problem.pde == "elasticity":
+        raise ConfigError("study_type", f"{kind} solves the scalar Signorini problem; pde: elasticity "
+                                        "runs refinement studies")
     for key, hint in UNUSED[kind].items():
         if key in raw:
             raise ConfigError(key, f"not used by study_type {kind}{hint}")
@@ -1094,6 +1197,8 @@ def to_dict(cfg):
     if cfg.problem.exact is not None:  # the reference keys are for data-only scenes (rejected otherwise)
         for key in ("reference_refinements", "reference_epsilon"):
             out["verification"].pop(key)
+    if cfg.problem.pde == "elasticity":
+        out["problem"].pop("exact_solves")  # a key of the scalar problem (rejected otherwise)
     if cfg.expect is not None:
         out["expect"]["rates"] = dict(cfg.expect.rates)
     out["problem"]["define"] = {name: e.text for name, e in cfg.problem.define}

@@ -32,6 +32,8 @@ class Forms:
     ds_c: ufl.Measure
     split: Split = None
     contact: object = None  # contact.ContactTerm: Γ_C terms integrated beside UFL (contact_quadrature exact, vertex)
+    near_nullspace: object = None  # PETSc.NullSpace the AMG preconditioner coarsens against (elasticity: rigid motions)
+    gap: object = None  # (w_h, w_ex): the Γ_C quantity the contact measures read, when it is not u_h itself
 
 
 def space(cfg, msh):

@@ -314,18 +314,38 @@ RULES = ("exact", "vertex")
 
 
 class ContactTerm:
-    """(1/eps)∫_Γc [u_h]_+^alpha v (penalty) minus (1/eps)∫_Γc [u_ex]_+^alpha v (data) on the rank's owned
+    """(1/eps)∫_Γc [w_h]_+^alpha v (penalty) minus (1/eps)∫_Γc [w_ex]_+^alpha v (data) on the rank's owned
     Γ_C facets (each counted once under MPI), integrated by `rule`: exact (the P1 integrals in closed
-    form, the data by adaptive rules) or vertex (lumped: (1/eps) psi(u_i) ∫ lambda_i). `penalty` False
-    leaves the penalty to UFL (the smooth positive part); `u_exact(points, eps)` evaluates u_ex in numpy
-    (None: no kinked data term). `eps` is the forms' Constant, read at every evaluation."""
+    form, the data by adaptive rules) or vertex (lumped: (1/eps) psi(w_i) ∫ lambda_i). On a scalar space
+    w = u; on a vector space w = u·n − g0 with `normal` (facets, d), constant per facet, and `gap` g0 taken
+    at the facets' vertices (gap(points) of the (facets, n+1, 3) points), so that w_h is linear on each facet
+    and the same rules are exact;
+    the test function is then v·n. `penalty` False leaves the penalty to UFL (the smooth positive part);
+    `u_exact(points, eps)` evaluates w_ex in numpy (None: no kinked data term). `eps` is the forms'
+    Constant, read at every evaluation."""
 
-    def __init__(self, u_h, facet_tags, marker, alpha, eps, rule="exact", penalty=True, u_exact=None):
+    def __init__(self, u_h, facet_tags, marker, alpha, eps, rule="exact", penalty=True, u_exact=None,
+                 normal=None, gap=None):
         self.u_h = u_h  # the iterate: the solver keeps it in u_h (ghosts updated) when it assembles
         self.dofs, self.points = measure.contact_facet_dofs(u_h.function_space, facet_tags, marker)
         self.sizes = measure.facet_sizes(self.points)
         self.alpha, self.eps, self.rule, self.penalty, self.u_exact = alpha, eps, rule, penalty, u_exact
+        self.bs = u_h.function_space.dofmap.index_map_bs
+        self.normal = normal
+        self.gap = np.zeros(self.dofs.shape) if gap is None else np.broadcast_to(gap(self.points), self.dofs.shape)
         self._data, self._data_eps = None, None
+
+    @property
+    def rows(self):
+        """The local dof indices the term touches, (facets, (n+1) bs): vertex-major, component-minor."""
+        rows = self.bs * self.dofs[:, :, None] + np.arange(self.bs)
+        return rows.reshape(len(self.dofs), self.dofs.shape[1] * self.bs)
+
+    def values(self, u):
+        """w at the facets' vertices (facets, n+1) from the local array u: u itself, or u·n − g0."""
+        if self.normal is None:
+            return u[self.dofs]
+        return np.einsum("fvk,fk->fv", u.reshape(-1, self.bs)[self.dofs], self.normal) - self.gap
 
     def prepare(self):
         """The data term at the current eps, computed once per eps (once per SNES solve)."""
@@ -344,7 +364,7 @@ class ContactTerm:
         """Per facet and vertex (facets, n+1): the term's residual at the P1 values u (local array)."""
         values = np.zeros(self.dofs.shape)
         if self.penalty:
-            u_f = u[self.dofs]
+            u_f = self.values(u)
             if self.rule == "vertex":
                 values += self.sizes[:, None] / u_f.shape[1] * psi(u_f, self.alpha)
             else:
@@ -355,8 +375,8 @@ class ContactTerm:
         return values / float(self.eps.value)
 
     def jacobian(self, u):
-        """Per facet (facets, n+1, n+1): (1/eps)∫ alpha [u_h]_+^(alpha-1) lambda_i lambda_j (vertex: diagonal)."""
-        u_f = u[self.dofs]
+        """Per facet (facets, n+1, n+1): (1/eps)∫ alpha [w_h]_+^(alpha-1) lambda_i lambda_j (vertex: diagonal)."""
+        u_f = self.values(u)
         k = u_f.shape[1]
         if self.rule == "vertex":
             diagonal = self.sizes[:, None] / k * self.alpha * psi(u_f, self.alpha - 1)
@@ -367,7 +387,10 @@ class ContactTerm:
 
     def add_residual(self, b):
         """b += the residual at u_h (local array, ghosts included: before b's reverse ghost update)."""
-        np.add.at(b, self.dofs, self.residual(self.u_h.x.array))
+        r = self.residual(self.u_h.x.array)
+        if self.normal is not None:  # the test function's normal component: r_i n_k at dof (i, k)
+            r = (r[:, :, None] * self.normal[:, None, :]).reshape(self.rows.shape)
+        np.add.at(b, self.rows, r)
 
     def add_jacobian(self, A, fixed):
         """A += the Jacobian (ADD, local indices) off the rows and columns of the local dofs `fixed`
@@ -377,8 +400,19 @@ class ContactTerm:
         A.assemblyBegin(PETSc.Mat.AssemblyType.FLUSH)  # after the INSERTed identity rows of Γ_D
         A.assemblyEnd(PETSc.Mat.AssemblyType.FLUSH)
         if len(self.dofs):  # (petsc4py divides by the number of blocks)
-            index = np.where(fixed[self.dofs], -1, self.dofs).astype(PETSc.IntType)  # PETSc skips index -1
-            A.setValuesLocalRCV(index, index, self.jacobian(self.u_h.x.array), addv=PETSc.InsertMode.ADD)
+            rows = self.rows
+            index = np.where(fixed[rows], -1, rows).astype(PETSc.IntType)  # PETSc skips index -1
+            A.setValuesLocalRCV(index, index, self.block_jacobian(self.u_h.x.array), addv=PETSc.InsertMode.ADD)
+
+    def block_jacobian(self, u):
+        """The Jacobian per facet on the term's rows: J_ij, or J_ij n_k n_l on a vector space."""
+        J = self.jacobian(u)
+        if self.normal is None:
+            return J
+        nn = self.normal[:, :, None] * self.normal[:, None, :]  # (facets, d, d)
+        blocks = J[:, :, None, :, None] * nn[:, None, :, None, :]  # (facets, i, k, j, l)
+        size = J.shape[1] * self.bs
+        return blocks.reshape(len(J), size, size)
 
 
 def canonical(rule, u_fn, alpha, points):

@@ -108,6 +108,19 @@ def penetration(u_h, contact_dofs):
     return max(u_h.function_space.mesh.comm.allreduce(local, op=MPI.MAX), 0.0)
 
 
+def vertex_penetration(comm, values):
+    """max [w_h]_+ over the Γ_C facets' vertex values (facets, n+1) of every rank: exact for P1."""
+    local = float(values.max()) if values.size else 0.0
+    return max(comm.allreduce(local, op=MPI.MAX), 0.0)
+
+
+def vertex_contact_measure(comm, values, points):
+    """|{w_h > 0} ∩ Γ_C| from the P1 vertex values (facets, n+1) and points (facets, n+1, 3) of the rank's
+    owned Γ_C facets (positive_fraction: exact for P1)."""
+    local = float(np.sum(facet_sizes(points) * positive_fraction(values))) if len(values) else 0.0
+    return comm.allreduce(local, op=MPI.SUM)
+
+
 def contact_measure(u_h, facet_dofs, facet_points):
     """|{u_h > 0} ∩ Γ_C|, exact for P1 and P2 on segments: on each Γ_C facet (its dofs and their points,
     vertices first) the positive part of a linear function, or of a quadratic on a segment, covers a

@@ -197,7 +197,7 @@ class NewtonSolver:
     every residual and Jacobian (timed as phase 'contact' within the assemblies)."""
 
     def __init__(self, F, J, u, bcs, options, prefix=None, monitor=None, test=None, phases=None, split=None,
-                 contact=None):
+                 contact=None, near_nullspace=None):
         self.phases = phases or Phases()
         with self.phases("forms"):
             # a form keeps a list of its cells (8 MiB at N = 1024): those used once per solve or only by the
@@ -216,6 +216,8 @@ class NewtonSolver:
         with self.phases("assemble_jacobian"):  # the sparsity pattern: part of the Jacobian's cost
             self.A = fem_petsc.create_matrix(self.a)
             self.K_rows = None if split is None else self.stiffness(self.A, fem.form(split.J_fixed))
+        if near_nullspace is not None:  # what AMG must coarsen exactly (elasticity: the rigid motions)
+            self.A.setNearNullSpace(near_nullspace)
         self.x = u.vector.duplicate()  # SNES's own iterate: never u.vector, which F() overwrites
         self.snes = PETSc.SNES().create(u.function_space.mesh.comm)
         self.snes.setFunction(self._residual, self.b)
@@ -536,7 +538,7 @@ class NewtonSolver:
 def varying_rows(V, a_vary, contact):
     """The owned rows (local indices) of J that its part beyond the stiffness can add to on any rank:
     the dofs of the cells of a_vary's facet integrals (Γ_C) and of the contact term's facets."""
-    local = [] if contact is None else [contact.dofs.ravel()]
+    local = [] if contact is None else [contact.rows.ravel()]
     if a_vary is not None:
         cell_dofs = V.dofmap.list.array.reshape(V.dofmap.list.num_nodes, -1)
         for kind in a_vary.integral_types:
@@ -544,7 +546,8 @@ def varying_rows(V, a_vary, contact):
                 # cells, (cell, local facet) pairs, or (cell, facet, cell, facet) for interior facets
                 entries = {fem.IntegralType.cell: 1, fem.IntegralType.exterior_facet: 2}.get(kind, 4)
                 cells = np.asarray(a_vary.domains(kind, i)).reshape(-1, entries)[:, ::2]
-                local.append(cell_dofs[cells.ravel()].ravel())
+                nodes = cell_dofs[cells.ravel()].ravel()  # a vector space's blocks: bs dofs per node
+                local.append((V.dofmap.index_map_bs * nodes[:, None] + np.arange(V.dofmap.index_map_bs)).ravel())
     marks = la.vector(V.dofmap.index_map, V.dofmap.index_map_bs)  # owners learn of the rows others mark
     if local:
         marks.array[np.concatenate(local)] = 1.0

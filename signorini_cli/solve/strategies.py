@@ -44,11 +44,13 @@ class Problem:
     split: object = None  # compliance.Split: Newton assembles the load and stiffness once per solve
     bounds: tuple = None
     contact: object = None  # contact.ContactTerm: the Γ_C terms assembled beside the UFL forms
+    near_nullspace: object = None  # PETSc.NullSpace for AMG (elasticity's rigid motions)
 
 
 def problem(forms, u_h, bcs, eps, eps_value, dim, bounds=None):
     """The Problem of compliance.Forms `forms` (the split and the contact term included) at eps_value."""
-    return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds, forms.contact)
+    return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds, forms.contact,
+                   forms.near_nullspace)
 
 
 def solve(solver_cfg, problem, previous=None, monitor=None, phases=None):
@@ -247,7 +249,7 @@ class Newton:
         test = solver.success_test(solver_cfg) if problem.bounds is None else None
         self.snes = solver.NewtonSolver(problem.F, problem.J, problem.u_h, problem.bcs, self.options(),
                                         monitor=monitor, test=test, phases=phases, split=problem.split,
-                                        contact=problem.contact)
+                                        contact=problem.contact, near_nullspace=problem.near_nullspace)
         if problem.bounds is not None:
             self.snes.snes.setVariableBounds(*problem.bounds)
         self.fell_back = False

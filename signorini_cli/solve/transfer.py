@@ -25,6 +25,8 @@ def transfer(u_source, V_target, extend=False):
     A target point outside the source mesh is an error, or with `extend` (curved boundaries of a
     non-nested family: an initial guess, not a measurement) takes the extension of u_source's polynomial
     on its closest cell."""
+    if V_target.dofmap.index_map_bs > 1:
+        return by_component(u_source, V_target, extend)
     n = kuhn_grid(u_source.function_space.mesh) if u_source.function_space.ufl_element().degree() == 1 else 0
     moved = kuhn_transfer(u_source, n, V_target) if n else None
     if moved is not None:
@@ -40,6 +42,15 @@ def transfer(u_source, V_target, extend=False):
     u_target = fem.Function(V_target)
     u_target.x.array[:n_owned] = values
     u_target.x.scatter_forward()
+    return u_target
+
+
+def by_component(u_source, V_target, extend):
+    """A vector P1 function moved one component at a time (each one a scalar P1 function)."""
+    u_target = fem.Function(V_target)
+    for i in range(V_target.dofmap.index_map_bs):
+        V_i, dofs = V_target.sub(i).collapse()
+        u_target.x.array[dofs] = transfer(u_source.sub(i).collapse(), V_i, extend).x.array
     return u_target
 
 

@@ -7,7 +7,7 @@ from dolfinx import fem
 
 from .. import config
 from ..meshing import meshes
-from ..problems import posed
+from ..problems import registry
 from ..problems.registry import problem_of
 from ..solve import solver, strategies
 from ..system import timing
@@ -75,7 +75,7 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     eps = fem.Constant(domain.mesh, eps_value)
     u_h = fem.Function(V, name="u_h")
     forms = problem_module.forms(cfg, domain, u_h, eps)
-    posed.check(cfg, domain, forms.u_exact, eps_value)  # refused before its first solve
+    registry.check_posed(cfg, domain, forms.u_exact, eps_value)  # refused before its first solve
     bcs = [problem_module.dirichlet_condition(V, domain, forms.u_exact)]
     problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)

@@ -21,15 +21,20 @@ def report(cfg, problem, domain, outcome, dofs):
         columns["linear_fallback"] = outcome.linear_fallback
     columns["final_correction"] = outcome.correction
     if "penetration" not in verification.measures(cfg):  # else the verification column has it
-        columns["penetration"] = penetration(problem.u_h, domain)
+        columns["penetration"] = penetration(problem, domain)
     if solver_cfg.condition_max_dofs > 0:
         small = dofs <= solver_cfg.condition_max_dofs and outcome.converged
         columns["condition"] = condition_number(problem) if small else None
     return columns
 
 
-def penetration(u_h, domain):
-    """max over Γ_C of [u_h]_+ (measure.penetration: a vertex value for P1, a segment's maximum for P2)."""
+def penetration(problem, domain):
+    """max over Γ_C of [u_h]_+ (measure.penetration: a vertex value for P1, a segment's maximum for P2); on a
+    vector space [u_h·n − g0]_+ from the contact term's vertex values (None without one: a Gauss rule)."""
+    u_h = problem.u_h
+    if u_h.function_space.dofmap.index_map_bs > 1:
+        term = problem.contact
+        return None if term is None else measure.vertex_penetration(domain.mesh.comm, term.values(u_h.x.array))
     dofs, _ = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
     return measure.penetration(u_h, dofs)
 

@@ -43,9 +43,10 @@ class Verifier:
         converged = level.outcome.converged
         errors = {}
         if forms.u_exact is not None and has_contact and _any_error(wanted):
-            found = measure.contact_errors(u_h, forms.u_exact, level.eps, self.cfg.alpha,
+            w_h, w_exact, seminorm = _contact_variable(u_h, forms, level)
+            found = measure.contact_errors(w_h, w_exact, level.eps, self.cfg.alpha,
                                            domain.ds_c(measure.contact_error_degree(u_h.function_space)),
-                                           level.errors["H1"])
+                                           seminorm)
             errors.update({k: v for k, v in found.items() if _wanted(k, wanted)})
         # a level that did not converge gets no reference solve and is no base for differences
         if self.reference is not None and converged:
@@ -71,6 +72,8 @@ class Verifier:
         """Γ_C quantities of the P1 u_h, exact: nodal max, the measure of {u_h > 0} and ∫[u_h]_+^beta in
         closed form (contact.positive_power, the rule of the solve's own penalty term)."""
         found = {}
+        if forms.gap is not None:  # elasticity: w_h = u_h·n − g0 at the Γ_C facets' vertices
+            return self._normal_quantities(level, domain, u_h, forms, wanted)
         dofs, points = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
         if "penetration" in wanted:
             found["penetration"] = measure.penetration(u_h, dofs)
@@ -82,6 +85,21 @@ class Verifier:
         if "energy" in wanted:
             penalty = self._positive_power(u_h, domain, dofs, points, alpha + 1) / (alpha + 1)
             found["energy"] = self._energy(level, domain, u_h, forms, penalty)
+        return found
+
+    def _normal_quantities(self, level, domain, u_h, forms, wanted):
+        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0: from its vertex values (penetration,
+        the contact set) and (1/eps)∫[w_h]_+^alpha by the Γ_C error rule (no potential energy)."""
+        comm, found = domain.mesh.comm, {}
+        values, points = forms.gap.vertex_values(), forms.gap.term.points
+        if "penetration" in wanted:
+            found["penetration"] = measure.vertex_penetration(comm, values)
+        if "contact_measure" in wanted:
+            found["contact_measure"] = measure.vertex_contact_measure(comm, values, points)
+        if "contact_force" in wanted:
+            ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
+            found["contact_force"] = measure.integrate(measure.positive(forms.gap.w_h) ** self.cfg.alpha,
+                                                       ds_c) / level.eps
         return found
 
     def _positive_power(self, u_h, domain, dofs, points, beta):
@@ -113,6 +131,17 @@ class Verifier:
             level.extra[name] = quantities[name] if ok else None
         if self.reference is not None:
             level.extra["reference_time_s"] = self.reference_time_s if ok else 0.0  # not part of time_s
+
+
+def _contact_variable(u_h, forms, level):
+    """(w_h, w_ex, seminorm) the Γ_C errors read: u_h, u_ex and |e|_H1 for the scalar problem; for
+    elasticity w = u·n − g0 and the energy seminorm a(e, e)^(1/2) of e = u − u_h (Lemma 3.1's analogue)."""
+    if forms.gap is None:
+        return u_h, forms.u_exact, level.errors["H1"]
+    msh = u_h.function_space.mesh
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": measure.error_degree(level.h)})
+    a_ee = measure.integrate(forms.gap.energy(forms.u_exact - u_h), dx)
+    return forms.gap.w_h, forms.gap.w_exact, abs(a_ee) ** 0.5
 
 
 def error_columns(cfg, wanted, has_contact, with_reference):

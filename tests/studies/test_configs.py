@@ -5,7 +5,7 @@ import pytest
 from mpi4py import MPI
 
 from signorini_cli import config, studies
-from signorini_cli.analysis import rates
+from signorini_cli.analysis import verdict
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = sorted(ROOT.glob("configs/**/*.yaml"))
@@ -20,16 +20,16 @@ def coarse(path, tmp_path):
 @parametrize_configs
 def test_config_header_cites_the_proven_rates(path):
     """The header names the paper's result behind every rate the verdict checks for H1 and L2 (as
-    rates.expected finds it for the scene), so header and verdict cannot drift apart."""
+    verdict.expected finds it for the scene: none for the elastic problem), so header and verdict cannot
+    drift apart."""
     cfg = config.load(path)
     assert cfg.description
     if (cfg.study_type != "refinement" or cfg.problem.exact is None or not cfg.verification.regular
             or cfg.positive_part.kind != "exact"):  # the paper says nothing of a smoothed positive part
         return
     header = " ".join(line for line in path.read_text().splitlines() if line.startswith("#"))
-    p = cfg.epsilon.p
     for norm in ("H1", "L2"):
-        found = rates.expected(cfg.dimension, cfg.alpha, p, norm)
+        found = verdict.expected(cfg, norm)
         if found.rate is not None:
             cited = " ".join(found.reference.split()[:2])  # "Cor. 3.2 i" is cited as "Cor. 3.2"
             assert cited in header, f"{norm}: {found.reference} (rate {found.rate:g}) not cited"

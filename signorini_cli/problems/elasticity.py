@@ -1,0 +1,219 @@
+"""Linear elasticity with normal compliance on Γ_C: the vector analogue of the scalar model (docs/elasticity.md).
+
+    −div σ(u) = f in Ω,   u = u_D on Γ_D,   ε σ_n(u) + [u·n − g0]_+^α = ĝ_n,  σ_t(u) = ĝ_t on Γ_C,
+
+σ(u) = 2μ ε(u) + λ (div u) I (plane strain in 2-D); `eps` is always the compliance parameter ε, `strain`
+the symmetric gradient. With the manufactured data the two Γ_C conditions add up to the traction σ(u)n:
+
+    ∫ σ(u_h):ε(v) + (1/ε)∫_Γc [w_h]_+^α (v·n) = ∫ f·v + ∫_Γc σ(u_ex)n·v + (1/ε)∫_Γc [w_ex]_+^α (v·n),
+
+w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine), so contact.ContactTerm integrates the
+penalty exactly, and the kinked data [w_ex]_+^α by its adaptive rules when n is one vector on all of Γ_C."""
+from contextlib import ExitStack
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from dolfinx import cpp, fem, la
+
+from ..config import expressions
+from ..meshing.meshes import CONTACT
+from . import compliance, contact, element, measure
+from .compliance import QUADRATURE_DEGREE, Forms, Split
+
+
+def space(cfg, msh):
+    """P1 vector Lagrange, d components."""
+    return element.space(msh, 1, shape=(msh.geometry.dim,))
+
+
+def lame(material):
+    """(μ, λ) from E and ν; in 2-D plane strain."""
+    E, nu = material.E, material.nu
+    return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+
+
+def strain(u):
+    return ufl.sym(ufl.grad(u))
+
+
+def sigma(u, mu, lmbda):
+    return 2 * mu * strain(u) + lmbda * ufl.tr(strain(u)) * ufl.Identity(len(u))
+
+
+def exact_solution(cfg, msh, eps):
+    """u_ex as a UFL vector (a constant component gets 0·x, so that the vector lives on the mesh)."""
+    x = ufl.SpatialCoordinate(msh)
+    variables = dict(zip(("x", "y", "z"), x), eps=eps)
+    return ufl.as_vector([c(variables, expressions.ufl_functions()) + 0 * x[0] for c in cfg.problem.exact])
+
+
+def gap(cfg, x, functions):
+    """g0 at the coordinates x (UFL or numpy), 0 by default."""
+    if cfg.problem.gap is None:
+        return 0 * x[0]
+    return cfg.problem.gap(dict(zip(("x", "y", "z"), x)), functions) + 0 * x[0]
+
+
+@dataclass(frozen=True)
+class Gap:
+    """What the Γ_C measures read: w = u·n − g0 of u_h and u_ex (UFL), a(e, e) of an error e (UFL), and
+    the ContactTerm's vertex values of w_h (facets, n+1) with the facets' vertex points."""
+    w_h: object
+    w_exact: object
+    energy: object
+    term: contact.ContactTerm
+
+    def vertex_values(self):
+        return self.term.values(self.term.u_h.x.array)
+
+
+def forms(cfg, domain, u_h, eps):
+    """F(u_h; v) and J = dF/du of the weak form above, with the exact contact term beside UFL."""
+    msh = domain.mesh
+    V = u_h.function_space
+    v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
+    mu, lmbda = lame(cfg.material)
+    rule = cfg.contact_quadrature
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
+    ds_c = domain.ds_c(rule if isinstance(rule, int) else QUADRATURE_DEGREE)
+    n = ufl.as_vector(cfg.problem.normal) if cfg.problem.normal is not None else ufl.FacetNormal(msh)
+    x = ufl.SpatialCoordinate(msh)
+    u_ex = exact_solution(cfg, msh, eps) if cfg.problem.exact is not None else None
+    g0 = gap(cfg, x, expressions.ufl_functions())
+    w_h = ufl.dot(u_h, n) - g0
+    w_ex = ufl.dot(u_ex, n) - g0 if u_ex is not None else None
+    term = contact_term(cfg, domain, u_h, eps)
+    exact_pp = type(cfg.positive_part)()  # the data use the exact positive part: u_ex solves the exact model
+    q = 0 if term is not None and term.penalty else compliance.compliance(
+        w_h, cfg.alpha, cfg.positive_part, fem.Constant(msh, domain.h), eps)
+    kink = 0 if u_ex is None or (term is not None and term.u_exact is not None) else compliance.compliance(
+        w_ex, cfg.alpha, exact_pp, None, eps)
+    stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # P1: exact at degree 0
+    load = load_form(u_ex, v, n, mu, lmbda, dx, ds_c)
+    varying = stiffness
+    if not (_is_zero(q) and _is_zero(kink)):
+        varying = stiffness + (q - kink) / eps * ufl.dot(v, n) * ds_c
+    F = varying - load
+    J_varying = None if _is_zero(q) else ufl.derivative(varying - stiffness, u_h, du)
+    split = Split(F_fixed=-load, J_fixed=ufl.derivative(stiffness, u_h, du), F_varying=varying, J_varying=J_varying)
+    energy = lambda e: ufl.inner(sigma(e, mu, lmbda), strain(e))  # noqa: E731
+    return Forms(F, ufl.derivative(F, u_h, du), u_ex, ds_c, split, term, near_nullspace=rigid_motions(V),
+                 gap=Gap(w_h, w_ex, energy, term or contact_term(cfg, domain, u_h, eps, measuring=True)))
+
+
+def load_form(u_ex, v, n, mu, lmbda, dx, ds_c):
+    """∫ f·v + ∫_Γc σ(u_ex)n·v with f = −div σ(u_ex); the physical problem (no u_ex): f = 0, ĝ = 0."""
+    if u_ex is None:
+        return ufl.inner(fem.Constant(v.ufl_function_space().mesh, np.zeros(len(v))), v) * dx
+    s = sigma(u_ex, mu, lmbda)
+    return ufl.dot(-ufl.div(s), v) * dx + ufl.dot(ufl.dot(s, n), v) * ds_c
+
+
+def _is_zero(value):
+    return isinstance(value, (int, float)) and value == 0
+
+
+def contact_term(cfg, domain, u_h, eps, measuring=False):
+    """The Γ_C terms beside UFL on w = u·n − g0 (contact_quadrature exact or vertex; None for a Gauss rule
+    unless `measuring`: then a term that only reads w_h's vertex values). The kinked data term joins it
+    when n is one vector on all of Γ_C: then w_ex is a function of x alone for the adaptive rules."""
+    rule = cfg.contact_quadrature
+    if isinstance(rule, int) and not measuring:
+        return None
+    facets = owned_contact_facets(domain)
+    normal = facet_normals(domain.mesh, facets)
+    if cfg.problem.normal is not None:
+        normal = np.broadcast_to(np.array(cfg.problem.normal), normal.shape)
+    n_c = common_normal(domain.mesh.comm, normal)
+    kinked = cfg.problem.exact is not None and n_c is not None and not measuring
+    u_fn = numpy_gap(cfg, n_c) if kinked else None
+    penalty = cfg.positive_part.kind == "exact" and not measuring
+    g0 = lambda points: gap(cfg, np.moveaxis(points, -1, 0), expressions.numpy_functions())  # noqa: E731
+    return contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, "exact" if measuring else rule,
+                               penalty, u_fn, normal=np.ascontiguousarray(normal), gap=g0)
+
+
+def owned_contact_facets(domain):
+    """The rank's owned Γ_C facets, in the order of measure.contact_facet_dofs."""
+    msh = domain.mesh
+    facets = domain.facets(CONTACT)
+    return facets[facets < msh.topology.index_map(msh.topology.dim - 1).size_local]
+
+
+def facet_normals(msh, facets):
+    """The outward unit normal of each (flat) facet, (facets, d): orthogonal to its edges, pointing away
+    from the centroid of its cell."""
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    f2c = msh.topology.connectivity(tdim - 1, tdim)
+    d = msh.geometry.dim
+    if not len(facets):
+        return np.zeros((0, d))
+    facet_x = msh.geometry.x[cpp.mesh.entities_to_geometry(msh._mesh, tdim - 1, facets, False)][..., :d]
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    cell_x = msh.geometry.x[cpp.mesh.entities_to_geometry(msh._mesh, tdim, cells, False)][..., :d]
+    edges = facet_x[:, 1:] - facet_x[:, :1]
+    if d == 2:
+        n = np.stack((edges[:, 0, 1], -edges[:, 0, 0]), axis=1)
+    else:
+        n = np.cross(edges[:, 0], edges[:, 1])
+    outward = np.einsum("fk,fk->f", n, facet_x.mean(axis=1) - cell_x.mean(axis=1))
+    n *= np.sign(outward)[:, None]
+    return n / np.linalg.norm(n, axis=1)[:, None]
+
+
+def common_normal(comm, normal, tol=1e-12):
+    """The normal shared by every Γ_C facet on every rank (a flat Γ_C), or None."""
+    firsts = [m for m in comm.allgather(normal[0] if len(normal) else None) if m is not None]
+    if not firsts:
+        return None
+    flat = bool(np.abs(normal - firsts[0]).max(initial=0.0) <= tol)
+    return firsts[0] if comm.allreduce(flat, op=MPI.LAND) else None
+
+
+def numpy_gap(cfg, n):
+    """w_ex(points, eps) = u_ex·n − g0 in numpy, points (..., 3): the kinked data term's integrand."""
+    dim = len(n)
+
+    def evaluate(points, eps_value):
+        coords = np.moveaxis(points, -1, 0)[:dim]
+        variables = dict(zip(("x", "y", "z"), coords), eps=eps_value)
+        functions = expressions.numpy_functions()
+        u = [np.broadcast_to(c(variables, functions), coords[0].shape) for c in cfg.problem.exact]
+        return sum(n_k * u_k for n_k, u_k in zip(n, u)) - gap(cfg, coords, functions)
+    return evaluate
+
+
+def dirichlet_condition(V, domain, u_exact):
+    """u = u_ex on Γ_D."""
+    return compliance.dirichlet_condition(V, domain, u_exact)
+
+
+def errors(u_h, u_exact, h):
+    """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (seminorm)} of the vector error."""
+    msh = u_h.function_space.mesh
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": measure.error_degree(h)})
+    e = u_h - u_exact
+    l2, h1 = measure.integrate_together(msh, [ufl.inner(e, e), ufl.inner(ufl.grad(e), ufl.grad(e))], dx)
+    return {"L2": np.sqrt(abs(l2)), "H1": np.sqrt(abs(h1))}
+
+
+def rigid_motions(V):
+    """The near-nullspace of elasticity for AMG: d translations and d(d−1)/2 rotations (3 in 2-D, 6 in 3-D),
+    orthonormalised; the rotation about the axis i×j is (−x_j e_i + x_i e_j)."""
+    d = V.mesh.geometry.dim
+    rotations = [(0, 1)] if d == 2 else [(0, 1), (0, 2), (1, 2)]
+    basis = [la.create_petsc_vector(V.dofmap.index_map, V.dofmap.index_map_bs) for _ in range(d + len(rotations))]
+    x = V.tabulate_dof_coordinates()
+    with ExitStack() as stack:
+        b = [np.asarray(stack.enter_context(vec.localForm())).reshape(-1, d) for vec in basis]
+        for i in range(d):
+            b[i][:, i] = 1.0
+        for k, (i, j) in enumerate(rotations):
+            b[d + k][:, i], b[d + k][:, j] = -x[:, j], x[:, i]
+    la.orthonormalize(basis)
+    return PETSc.NullSpace().create(vectors=basis)
