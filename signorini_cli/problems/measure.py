@@ -17,12 +17,12 @@ def integrate(expr, measure):
 
 
 def errors(u_h, u_exact, h):
-    """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (the seminorm, as in the paper)}; h, the mesh's
-    size (Domain.h), and u_h's degree set the quadrature (element.error_degree)."""
+    """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (the seminorm, as in the paper)}, of a scalar or
+    vector u_h; h, the mesh's size (Domain.h), and u_h's degree set the quadrature (element.error_degree)."""
     msh = u_h.function_space.mesh
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": error_degree(u_h.function_space, h)})
     e = u_h - u_exact
-    l2, h1 = integrate_together(msh, [e**2, ufl.inner(ufl.grad(e), ufl.grad(e))], dx)
+    l2, h1 = integrate_together(msh, [ufl.inner(e, e), ufl.inner(ufl.grad(e), ufl.grad(e))], dx)
     return {"L2": np.sqrt(abs(l2)), "H1": np.sqrt(abs(h1))}
 
 
