@@ -23,6 +23,9 @@ class NormVerdict:
     reference: str
     conditions: str
     levels: tuple  # N of the fitted levels
+    lo: float = None  # the observed rate's interval
+    hi: float = None
+    reason: str = ""
 
 
 @dataclass(frozen=True)
@@ -106,7 +109,7 @@ def norm_verdict(cfg, levels, norm):
     used = tuple(levels[i].n for i in rates.usable(e, ok)[-k:])
     return NormVerdict(norm, observed, plain, proven.rate, proven.log_factor,
                        decide(observed, proven.rate, cfg.verification.tolerance),
-                       proven.reference, proven.conditions or proven.reason, used)
+                       proven.reference, proven.conditions or proven.reason, used, observed, observed, "")
 
 
 def expected(cfg, norm):
