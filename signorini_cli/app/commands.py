@@ -1,5 +1,6 @@
 """The commands: run (a study of any type), check (resolved config), init (the commented template), list
 (shipped configs), report and compare; their exit statuses and the one-line error of bad input."""
+import contextlib
 import dataclasses
 import logging
 import os
@@ -16,7 +17,7 @@ from ..meshing import geometries
 from ..record import results, resume
 from ..report import plots, progress, tables
 from ..solve import solver
-from . import guard, resources
+from . import guard, maps, resources
 
 logger = logging.getLogger(__name__)
 
@@ -87,7 +88,10 @@ def _description(path):
 
 
 def report_study(args):
-    """Tables and plots of a finished or partial study from its study.h5 or rates.csv."""
+    """Tables and plots of a finished or partial study from its study.h5 or rates.csv (a map: map.csv,
+    its figures and tables from its points' folders)."""
+    if maps.is_map(args.path):
+        return report_map(args)
     try:
         study = tables.load(args.path)
         cfg = study_config(study)
@@ -107,6 +111,17 @@ def report_study(args):
     if MPI.COMM_WORLD.rank == 0:
         emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
               f"wrote into {Path(args.output or study.folder)}: " + ", ".join(p.name for p in written)])
+    return EXIT_OK
+
+
+def report_map(args):
+    """A map's outputs redrawn from its folder."""
+    try:
+        text = maps.report(args.path, draw=not args.no_plots) if MPI.COMM_WORLD.rank == 0 else None
+    except (ConfigError, yaml.YAMLError, OSError) as err:
+        return fail(args.path, err)
+    if text:
+        emit([text])
     return EXIT_OK
 
 
@@ -173,6 +188,10 @@ def _labels(studies):
 def _run_command(args):
     try:
         cfg = _load(args)
+        if cfg.study_type == "map":
+            return _run_map(cfg, args)
+        if args.points:
+            raise ConfigError("--points", f"chooses points of a map; study_type is {cfg.study_type}")
         lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD)  # writable, and no other run writes it
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return fail(args.config, err)
@@ -183,6 +202,19 @@ def _run_command(args):
         except (ConfigError, yaml.YAMLError, OSError) as err:
             return fail(args.config, err)
         return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
+
+
+def _run_map(cfg, args):
+    """A map: on map.jobs local workers (under mpirun); one run per map folder, while a chunk (--points)
+    locks its points one by one instead, so that chunks of one map may run side by side."""
+    if cfg.map.jobs > 1 and MPI.COMM_WORLD.size == 1:
+        maps.relaunch(cfg.map.jobs)
+    try:
+        lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD) if not args.points else contextlib.nullcontext()
+        with lock:
+            return maps.run(cfg, args.points, force=args.force, resume_map=args.resume, quiet=args.quiet)
+    except (ConfigError, OSError) as err:
+        return fail(args.config, err)
 
 
 def run(cfg, quiet=False, verbose=False, done=()):

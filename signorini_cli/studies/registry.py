@@ -1,13 +1,14 @@
 """The study types by name: each runs its levels and returns the solves (no printing, no files)."""
 from mpi4py import MPI
 
+from .map import run_map
 from .refinement import run_refinement
 from .signorini import run_signorini
 from .sweep import run_sweep
 from .total import run_total
 
 STUDY_TYPES = {"refinement": run_refinement, "signorini": run_signorini, "epsilon_sweep": run_sweep,
-               "total_error": run_total}
+               "total_error": run_total, "map": run_map}
 
 
 def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
