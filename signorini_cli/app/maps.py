@@ -29,7 +29,9 @@ def relaunch(jobs):
         raise ConfigError("map.jobs", f"{jobs} workers run under mpirun, which is not on PATH; run the map "
                                       "under mpirun -n N yourself, or set map.jobs: 1")
     sys.stdout.flush()
-    os.execv(mpirun, [mpirun, "-n", str(jobs), *sys.orig_argv])
+    # os.environ is the environment this process started with: MPI's start-up added variables of its own
+    # to the C environment that would make mpirun take the new job for this one
+    os.execve(mpirun, [mpirun, "-n", str(jobs), *sys.orig_argv], dict(os.environ))
 
 
 def run(cfg, points=None, force=False, resume_map=False, quiet=False):
