@@ -34,11 +34,10 @@ def relaunch(jobs):
     os.execve(mpirun, [mpirun, "-n", str(jobs), *sys.orig_argv], dict(os.environ))
 
 
-def run(cfg, points=None, force=False, resume_map=False, quiet=False):
+def run(cfg, points=None, force=False, resume_map=False, quiet=False, comm=MPI.COMM_WORLD):
     """Run the map's points (those of the chunk `points`, e.g. "0-49", else all; with resume_map those not
     yet ended), then write map.csv, figures and tables on rank 0. Exit 0 when every point run
     converged, else 1."""
-    comm = MPI.COMM_WORLD
     count = len(cfg.map.studies)
     chosen = map_config.chunk(points, count) if points else list(range(count))
     ended = _shared(comm, lambda: _ended(cfg, chosen)) if resume_map else set()
@@ -46,7 +45,7 @@ def run(cfg, points=None, force=False, resume_map=False, quiet=False):
         _shared(comm, lambda: _check_fresh(cfg, chosen, whole=not points))
     if comm.rank == 0:
         _start(cfg, count, ended)
-    recorder = Recorder(cfg, quiet, chunked=bool(points))
+    recorder = Recorder(cfg, comm, quiet, chunked=bool(points))
     try:
         ran = studies.run_study(cfg, on_level=recorder, comm=comm, done=(set(range(count)) - set(chosen)) | ended)
     except guard.Interrupted as sig:
@@ -114,8 +113,8 @@ class Recorder:
     """on_level of a map: a point's folder written as it starts, after each level and as it ends (its
     group's rank 0 writes; signals wait); a line per finished point."""
 
-    def __init__(self, cfg, quiet, chunked):
-        self.cfg, self.quiet, self.chunked = cfg, quiet, chunked
+    def __init__(self, cfg, comm, quiet, chunked):
+        self.cfg, self.comm, self.quiet, self.chunked = cfg, comm, quiet, chunked
         self.point, self.lock = None, None
 
     def __call__(self, point):
@@ -158,7 +157,7 @@ class Recorder:
         point = self.point
         if point is not None and not point.done and point.comm.rank == 0:
             results.write_status(point.cfg.output_dir, f"interrupted at level {len(point.levels)}")
-        if MPI.COMM_WORLD.rank == 0:
+        if self.comm.rank == 0:
             done = sum(point_status(c).startswith(ENDED) for c in self.cfg.map.studies)
             results.write_status(self.cfg.output_dir, f"interrupted ({done} of {len(self.cfg.map.studies)} "
                                                       "points done)")
