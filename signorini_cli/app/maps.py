@@ -110,22 +110,24 @@ def _start(cfg, count, ended):
 
 
 class Recorder:
-    """on_level of a map: a point's folder written as it starts, after each level and as it ends (its
-    group's rank 0 writes; signals wait); a line per finished point."""
+    """on_level of a map: a point's folder prepared as the point starts and its results written once as it
+    ends (its group's rank 0 writes; signals wait): a finished point is kept whole, one under way is
+    solved again by --resume. A line per finished point."""
 
     def __init__(self, cfg, comm, quiet, chunked):
         self.cfg, self.comm, self.quiet, self.chunked = cfg, comm, quiet, chunked
         self.point, self.lock = None, None
 
     def __call__(self, point):
+        if point is not self.point:
+            self.begin(point)
+        if not point.done:
+            return
         with guard.deferred():
-            if point is not self.point:
-                self.begin(point)
-            guard.results_write(point.cfg, point.levels, point.comm, final=point.done)
-            if point.done and point.failure and point.comm.rank == 0:
+            guard.results_write(point.cfg, point.levels, point.comm)
+            if point.failure and point.comm.rank == 0:
                 results.write_status(point.cfg.output_dir, f"failed at level {len(point.levels)}: {point.failure}")
-        if point.done:
-            self.end(point)
+        self.end(point)
 
     def begin(self, point):
         """A point's folder: locked (a chunk's points: chunks of one map may run at once), emptied of an
@@ -140,6 +142,7 @@ class Recorder:
                 if path.is_file():
                     path.unlink()
             (folder / CONFIG_FILE).write_text(point.cfg.text)
+            results.write_status(folder, "running")
         point.comm.barrier()
 
     def end(self, point):
