@@ -13,7 +13,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN := mpirun -n $(NP)
 CONFIG ?= configs/demo.yaml
-CONFIGS := $(shell find configs -name '*.yaml' | sort)
+CONFIGS := $(shell find configs -path configs/maps -prune -o -name '*.yaml' -print | sort)  # maps: `make maps`
 PAPER_CONFIGS := $(sort $(wildcard configs/paper/*.yaml))
 PAPER_RESULTS := results/paper
 

@@ -36,6 +36,7 @@ def map_raw(folder, grid, refinements=(4, 8, 16), **changes):
 
 def write_map(folder, grid, refinements=(4, 8, 16), **changes):
     path = Path(folder) / "m.yaml"
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(yaml.safe_dump(map_raw(folder, grid, refinements, **changes), sort_keys=False))
     return str(path)
 
