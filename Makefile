@@ -134,3 +134,19 @@ bench/results.md: scripts/bench.py scripts/provenance.py $(wildcard bench/config
 precision: docs/precision.md
 docs/precision.md: scripts/precision.py scripts/provenance.py $(CONFIGS) $(PACKAGE) | $(STAMP)
 	$(PY) scripts/precision.py --page $@
+
+# Rate maps (docs/maps.md): configs/maps/ on $(NP) ranks (groups of one rank take the points in turn), then
+# the page and its figures from the maps' folders.
+MAP_CONFIGS := $(sort $(wildcard configs/maps/*.yaml))
+MAP_STAMPS := $(MAP_CONFIGS:%=$(MADE)/maps/%.status)
+.PHONY: maps bench-maps
+maps: docs/maps.md
+	$(call missed,$(MAP_STAMPS))
+$(MADE)/maps/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<,--quiet,$(MPIRUN))
+docs/maps.md: $(MAP_STAMPS) scripts/maps_page.py scripts/provenance.py
+	$(PY) scripts/maps_page.py $(MAP_CONFIGS) --out $@
+
+# only the map section of the bench (bench/maps.md, bench/maps.csv)
+bench-maps: setup
+	$(PY) scripts/bench.py --maps

@@ -270,7 +270,7 @@ def rate_lines(rows, norm, key, others):
     xs, numeric, logarithmic = _axis_values(rows, key)
     combos = _fixed(rows, others)[:MAX_LINES]
     fig, ax = plt.subplots(figsize=(plots.WIDTH_PT / 72, 2.6))
-    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.16, top=0.96)
+    fig.subplots_adjust(left=0.12, right=0.97, bottom=0.16, top=0.91)
     for i, combo in enumerate(combos):
         fixed = dict(zip(others, combo))
         chosen = {_cell(r.get(key)): r for r in rows if all(_cell(r.get(k)) == v for k, v in fixed.items())}
@@ -280,6 +280,9 @@ def rate_lines(rows, norm, key, others):
         label = ", ".join(f"{k}={v}" for k, v in fixed.items()) or norm
         ax.plot(where, [_number(chosen[x].get(f"rate_{norm}")) or math.nan for x in at], marker=marker,
                 color=colour, label=label)
+        plain = [_number(chosen[x].get(f"rate_{norm}_plain")) or math.nan for x in at]
+        if any(abs(p - (_number(chosen[x].get(f"rate_{norm}")) or math.nan)) > 1e-12 for p, x in zip(plain, at)):
+            ax.plot(where, plain, "--", marker=marker, mfc="none", color=colour)  # the fit of e, not e/|ln h|
         ax.plot(where, [_number(chosen[x].get(f"proven_{norm}")) or math.nan for x in at], ":", marker="_",
                 ms=8, color=colour)
     if logarithmic:
@@ -287,7 +290,9 @@ def rate_lines(rows, norm, key, others):
     if not numeric:
         ax.set_xticks(range(len(xs)), xs)
     ax.set_xlabel(key)
-    ax.set_ylabel(f"fitted rate, {norm} (dotted: proven)")
+    logs = any(_number(r.get(f"rate_{norm}_plain")) != _number(r.get(f"rate_{norm}")) for r in rows)
+    ax.set_ylabel(f"fitted rate, {norm}" + (" (dashed: plain fit)" if logs else ""))
+    ax.set_title("dotted: the proven rate" + ("; solid: fit of e/|ln h|" if logs else ""), fontsize=plots.FONT_PT)
     if len(combos) > 1 or others:
         ax.legend(loc="best", fontsize=plots.FONT_PT - 1)
     return fig

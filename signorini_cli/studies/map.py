@@ -8,6 +8,7 @@ from mpi4py import MPI
 
 from ..analysis import verdict
 from ..config import ConfigError
+from . import jit_cache
 from .refinement import run_refinement
 
 logger = logging.getLogger(__name__)
@@ -51,8 +52,9 @@ def run_map(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     group, color, count = groups(comm, cfg.map.ranks_per_point)
     skipped = set(done)
     todo = [k for k in range(len(cfg.map.studies)) if k not in skipped]
-    return [run_point(Point(k, cfg.map.values[k], cfg.map.studies[k], group), on_level, monitor)
-            for k in assigned(todo, color, count)]
+    with jit_cache.kept():
+        return [run_point(Point(k, cfg.map.values[k], cfg.map.studies[k], group), on_level, monitor)
+                for k in assigned(todo, color, count)]
 
 
 def run_point(point, on_level=None, monitor=None):
