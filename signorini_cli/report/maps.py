@@ -198,7 +198,7 @@ def heat_map(rows, norm, a, b, others):
     combos = _fixed(rows, others)
     per_row = max(1, min(len(combos), 2))
     n_rows = math.ceil(len(combos) / per_row)
-    left, right, top, gap, below = 0.7, 0.85, 0.3, 0.75, 0.85  # inches: tick labels, colour bar, titles, legend
+    left, right, top, gap, below = 0.7, 0.85, 0.3, 0.75, 0.75  # inches: tick labels, colour bar, titles, legend
     width = plots.WIDTH_PT / 72
     panel_w = (width - left - right - (per_row - 1) * 0.5) / per_row
     panel_h = max(0.9, 0.22 * len(ys) + 0.2)
