@@ -104,7 +104,7 @@ def row(cfg, values, levels, status, varied):
     for v in verdict.summarize(cfg, levels).norms if levels else ():
         finest = [lv.errors.get(v.norm) for lv in levels if lv.outcome.converged]
         out.update({f"rate_{v.norm}": v.observed, f"rate_{v.norm}_lo": v.lo, f"rate_{v.norm}_hi": v.hi,
-                    f"rate_{v.norm}_plain": v.plain, f"proven_{v.norm}": v.proven,
+                    f"rate_{v.norm}_plain": getattr(v, "plain", v.observed), f"proven_{v.norm}": v.proven,
                     f"verdict_{v.norm}": v.verdict, v.norm: finest[-1] if finest else None})
     out.update(converged=status == "complete" and all(lv.outcome.converged for lv in levels),
                newton_its=sum(lv.outcome.newton_its for lv in levels),
