@@ -442,10 +442,6 @@ def report_cost(repeats=3):
                       f"`--no-plots`: {ratio:.2f}× (target ≤ 2.5×).", ""])
 
 
-if __name__ == "__main__":
-    main()
-
-
 # --- rate maps --------------------------------------------------------------------------------------
 MAP_CONFIG = CONFIGS / "map-30.yaml"
 MAP_TARGETS = {"overhead_s": 0.1, "vs_processes": 1 / 3, "speedup": 1.8}
@@ -476,7 +472,8 @@ def map_runs():
     out = RUNS / "maps"
     shutil.rmtree(out, ignore_errors=True)
     run_map = SIGNORINI + ["run", MAP_CONFIG, "--force", "--quiet", "--output"]
-    found = {"serial": timed(run_map + [out / "serial"], out), "one": timed(run_map + [out / "one", "--points", "0"], out),
+    found = {"serial": timed(run_map + [out / "serial"], out),
+             "one": timed(run_map + [out / "one", "--points", "0"], out),
              "ranks2": timed(MPIRUN + ["2"] + run_map + [out / "ranks2"], out)}
     points = sorted((out / "serial" / "bench-map-30" / "points").iterdir(), key=lambda p: int(p.name))
     alone = [timed(SIGNORINI + ["run", p / "config.yaml", "--force", "--quiet", "--output", out / "alone",
@@ -500,20 +497,24 @@ def maps_section(machine):
     made = provenance.line("bench-maps", sorted((RUNS / "maps" / "serial" / "bench-map-30" / "points").iterdir()))
     rows = [("overhead per point beyond its levels' solves (s)", overhead, f"<= {MAP_TARGETS['overhead_s']}",
              overhead <= MAP_TARGETS["overhead_s"]),
-            ("map / the same points as separate processes (wall)", ratio, "<= 1/3", ratio <= MAP_TARGETS["vs_processes"]),
+            ("map / the same points as separate processes (wall)", ratio, "<= 1/3",
+             ratio <= MAP_TARGETS["vs_processes"]),
             ("speed-up on 2 ranks (two groups of one)", speedup, f">= {MAP_TARGETS['speedup']}",
              speedup >= MAP_TARGETS["speedup"])]
     lines = [MAP_HEADING, "", f"{made} Machine: {machine['cpu']}, {machine['cores']} cores; "
              f"`{MAP_CONFIG.relative_to(ROOT)}`: {n} points, N = 8..128.", "",
              "| target | measured | target | met |", "|---|---|---|---|"]
-    lines += [f"| {what} | {value:.3f} | {limit} | {'yes' if met else '**no**'} |" for what, value, limit, met in rows]
+    lines += [f"| {what} | {value:.3f} | {limit} | {'yes' if met else '**no**'} |"
+              for what, value, limit, met in rows]
     lines += ["", "| run | wall (s) | levels' solves (s) | exit |", "|---|---|---|---|",
               f"| map, serial | {r['serial'][0]:.1f} | {r['serial_solves']:.1f} | {r['serial'][1]} |",
-              f"| map, its first point alone (`--points 0`) | {r['one'][0]:.1f} | {r['one_solves']:.1f} | {r['one'][1]} |",
+              f"| map, its first point alone (`--points 0`) | {r['one'][0]:.1f} | {r['one_solves']:.1f} | "
+              f"{r['one'][1]} |",
               f"| map, `mpirun -n 2` | {r['ranks2'][0]:.1f} | {r['ranks2_solves']:.1f} | {r['ranks2'][1]} |",
-              f"| {n} separate `signorini run` | {r['alone'][0]:.1f} | {r['alone_solves']:.1f} | {r['alone'][1]} |", "",
-              "Overhead per point = ((map wall − its levels' time_s) − (one-point map wall − its levels' time_s)) / "
-              f"{n - 1}: what a point costs beyond its solves once the process has started. The levels' own time "
+              f"| {n} separate `signorini run` | {r['alone'][0]:.1f} | {r['alone_solves']:.1f} | {r['alone'][1]} |",
+              "",
+              "Overhead per point = ((map wall − its levels' time_s) − (one-point map wall − its levels' "
+              f"time_s)) / {n - 1}: what a point costs beyond its solves once the process has started. The levels' own time "
               "is shorter in the map than in separate processes: FFCx's modules are loaded once per map.", ""]
     return "\n".join(lines) + "\n"
 
@@ -528,3 +529,7 @@ def splice(path, section):
     else:
         text = text.rstrip("\n") + "\n\n" + section
     path.write_text(text)
+
+
+if __name__ == "__main__":
+    main()

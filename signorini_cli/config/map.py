@@ -44,7 +44,8 @@ def parse(raw, base, folder):
         raise ConfigError("map", "missing: study_type map needs a map block (map.grid)")
     settings._keys(block, "map", optional=KEYS)
     grid = _grid(block.get("grid", {}), "map.grid")
-    points = tuple(_point(p, f"map.points[{i}]") for i, p in enumerate(_list(block.get("points", []), "map.points")))
+    listed = _list(block.get("points", []), "map.points")
+    points = tuple(_point(p, f"map.points[{i}]") for i, p in enumerate(listed))
     if not grid and not points:
         raise ConfigError("map.grid", "give at least one dotted key with its list of values")
     values = tuple(dict(zip(grid, combo)) for combo in itertools.product(*grid.values())) + points

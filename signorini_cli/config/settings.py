@@ -42,7 +42,8 @@ REFERENCE_EPSILONS = ("per_level", "fixed")
 MAX_REFERENCE_REFINEMENTS = 2
 # rate columns an `expect:` block may name: exact-solution errors, errors against a reference, differences
 ERROR_NORMS, REFERENCE_NORMS = names.ERROR_NORMS, names.REFERENCE_NORMS
-STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error", "map")  # limit: docs/limit.md; map: docs/maps.md
+# the ε → 0 studies: docs/limit.md; map: docs/maps.md
+STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error", "map")
 EXACT_SOLVES = ("compliance", "signorini")
 DOCS = 'README.md, section "Config"'  # where every key is described; `signorini init` prints them all
 
@@ -251,7 +252,7 @@ class Config:
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
     study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error | map")
-    map: object = key(None, "a rate map: dotted keys -> values, one refinement study per combination (docs/maps.md)",
+    map: object = key(None, "a rate map: dotted keys -> values, one refinement study per combination",
                       example={"grid": {"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]}, "jobs": 1,
                                "ranks_per_point": 1}, only="only with study_type: map")
     limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)", only="only with study_type: epsilon_sweep or total_error")
