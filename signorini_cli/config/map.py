@@ -24,8 +24,8 @@ class Map:
     points: tuple
     jobs: int
     ranks_per_point: int
-    studies: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True})
-    values: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True})
+    studies: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
+    values: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
 
     @property
     def varied(self):

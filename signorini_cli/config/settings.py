@@ -1137,9 +1137,9 @@ def _mesh_dict(mesh):
     return out
 
 
-def _internal(section):
-    """The fields of a section that are no config keys (a map's resolved points)."""
-    return {f.name for f in dataclasses.fields(section) if f.metadata.get("internal") and f.name != "text"}
+def _derived(section):
+    """The fields of a section derived from its keys (a map's resolved points): not settings themselves."""
+    return {f.name for f in dataclasses.fields(section) if f.metadata.get("derived")}
 
 
 def _plain(value):
@@ -1148,7 +1148,7 @@ def _plain(value):
     if dataclasses.is_dataclass(value):
         fields = ((f.name, getattr(value, f.name)) for f in dataclasses.fields(value))
         return {name: dict(item) if name == "petsc_options" else _plain(item)  # (name, value) pairs
-                for name, item in fields if item is not None and name not in _internal(value)}
+                for name, item in fields if item is not None and name not in _derived(value)}
     if isinstance(value, tuple):
         return [_plain(v) for v in value]
     return value
