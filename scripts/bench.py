@@ -514,8 +514,9 @@ def maps_section(machine):
               f"| {n} separate `signorini run` | {r['alone'][0]:.1f} | {r['alone_solves']:.1f} | {r['alone'][1]} |",
               "",
               "Overhead per point = ((map wall − its levels' time_s) − (one-point map wall − its levels' "
-              f"time_s)) / {n - 1}: what a point costs beyond its solves once the process has started. The levels' own time "
-              "is shorter in the map than in separate processes: FFCx's modules are loaded once per map.", ""]
+              f"time_s)) / {n - 1}: what a point costs beyond its solves once the process has started. The "
+              "levels' own time is shorter in the map than in separate processes: FFCx's modules are loaded once "
+              "per map.", ""]
     return "\n".join(lines) + "\n"
 
 
