@@ -13,7 +13,7 @@ export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 MPIRUN := mpirun -n $(NP)
 CONFIG ?= configs/demo.yaml
-CONFIGS := $(shell find configs -name '*.yaml' | sort)
+CONFIGS := $(shell find configs -path configs/maps -prune -o -name '*.yaml' -print | sort)  # maps: `make maps`
 PAPER_CONFIGS := $(sort $(wildcard configs/paper/*.yaml)) configs/gmsh/l-shape-corner.yaml  # and the corner solution
 PAPER_RESULTS := results/paper
 
@@ -170,3 +170,19 @@ docs/elasticity.md: scripts/elasticity_page.py scripts/provenance.py $(ELASTIC_C
 # the elastic section of bench/results.md: Newton time against the linear floor, 2-D up to N = 256, 3-D 32^3
 bench-elasticity: setup
 	$(PY) scripts/elasticity_page.py --bench
+
+# Rate maps (docs/maps.md): configs/maps/ on $(NP) ranks (groups of one rank take the points in turn), then
+# the page and its figures from the maps' folders.
+MAP_CONFIGS := $(sort $(wildcard configs/maps/*.yaml))
+MAP_STAMPS := $(MAP_CONFIGS:%=$(MADE)/maps/%.status)
+.PHONY: maps bench-maps
+maps: docs/maps.md
+	$(call missed,$(MAP_STAMPS))
+$(MADE)/maps/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<,--quiet,$(MPIRUN))
+docs/maps.md: $(MAP_STAMPS) scripts/maps_page.py scripts/provenance.py
+	$(PY) scripts/maps_page.py $(MAP_CONFIGS) --out $@
+
+# only the map section of the bench (bench/maps.md, bench/maps.csv)
+bench-maps: setup
+	$(PY) scripts/bench.py --maps

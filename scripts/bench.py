@@ -69,6 +69,12 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     again = "--page" in argv
     machine = machine_facts()
+    if "--maps" in argv:  # make bench-maps: the map section alone, spliced into results.md
+        section = maps_section(machine)
+        (ROOT / "bench" / "maps.md").write_text(section)
+        splice(ROOT / "bench" / "results.md", section)
+        print(section)
+        return
     if "--only" in argv:
         names = argv[argv.index("--only") + 1].split(",")
         for name, config, ranks, overrides in BENCH_RUNS + CHOICE_RUNS + SCALING_RUNS:
@@ -80,7 +86,7 @@ def main(argv=None):
     (ROOT / "bench").mkdir(exist_ok=True)
     write_csv(ROOT / "bench" / "results.csv", runs, machine)
     runs["tutorial"] = (read_tutorial if again else tutorial)()
-    (ROOT / "bench" / "results.md").write_text(page(runs, machine) + report_cost())
+    (ROOT / "bench" / "results.md").write_text(page(runs, machine) + report_cost() + "\n" + maps_section(machine))
     print("wrote bench/results.csv, bench/results.md")
 
 
@@ -434,6 +440,96 @@ def report_cost(repeats=3):
                       f"{repeats} fresh processes: {seconds['with figures']:.2f} s with its default figures "
                       f"(convergence, work–precision, Newton; PNG and PDF), {seconds['--no-plots']:.2f} s with "
                       f"`--no-plots`: {ratio:.2f}× (target ≤ 2.5×).", ""])
+
+
+# --- rate maps --------------------------------------------------------------------------------------
+MAP_CONFIG = CONFIGS / "map-30.yaml"
+MAP_TARGETS = {"overhead_s": 0.1, "vs_processes": 1 / 3, "speedup": 1.8}
+MAP_HEADING = "## Rate maps (`make bench-maps`)"
+
+
+def timed(command, out):
+    """Run `command` (a signorini run writing into `out`), its wall time in seconds and exit status."""
+    print(f"== {' '.join(map(str, command))}", flush=True)
+    start = time.perf_counter()
+    status = subprocess.run([str(c) for c in command], cwd=ROOT, env=dict(os.environ, **MPI_ENV)).returncode
+    return time.perf_counter() - start, status
+
+
+def solves_s(folder):
+    """The levels' own wall time, summed over every point of a map folder (or over one study folder)."""
+    paths = sorted(Path(folder).glob("points/*/rates.csv")) or [Path(folder) / "rates.csv"]
+    total = 0.0
+    for path in paths:
+        with open(path) as f:
+            total += sum(float(row["time_s"]) for row in csv.DictReader(f))
+    return total
+
+
+def map_runs():
+    """The 30-point map serially, its first point alone as a map (--points 0), the map on 2 ranks, and
+    its 30 points as separate `signorini run` processes (no figures, as the map draws none per point)."""
+    out = RUNS / "maps"
+    shutil.rmtree(out, ignore_errors=True)
+    run_map = SIGNORINI + ["run", MAP_CONFIG, "--force", "--quiet", "--output"]
+    found = {"serial": timed(run_map + [out / "serial"], out),
+             "one": timed(run_map + [out / "one", "--points", "0"], out),
+             "ranks2": timed(MPIRUN + ["2"] + run_map + [out / "ranks2"], out)}
+    points = sorted((out / "serial" / "bench-map-30" / "points").iterdir(), key=lambda p: int(p.name))
+    alone = [timed(SIGNORINI + ["run", p / "config.yaml", "--force", "--quiet", "--output", out / "alone",
+                                "--set", "output.plots=false"], out) for p in points]
+    found["alone"] = (sum(wall for wall, _ in alone), max(status for _, status in alone))
+    found["alone_solves"] = sum(solves_s(out / "alone" / p.name) for p in points)
+    for name in ("serial", "one", "ranks2"):
+        found[f"{name}_solves"] = solves_s(out / name / "bench-map-30")
+    found["points"] = len(points)
+    return found
+
+
+def maps_section(machine):
+    """The map section of bench/results.md: overhead per point, the map against separate processes, 2 ranks."""
+    r = map_runs()
+    n = r["points"]
+    # overhead per point: the map's wall time beyond its levels, less that of a one-point map (start-up, end)
+    overhead = ((r["serial"][0] - r["serial_solves"]) - (r["one"][0] - r["one_solves"])) / (n - 1)
+    ratio = r["serial"][0] / r["alone"][0]
+    speedup = r["serial"][0] / r["ranks2"][0]
+    made = provenance.line("bench-maps", sorted((RUNS / "maps" / "serial" / "bench-map-30" / "points").iterdir()))
+    rows = [("overhead per point beyond its levels' solves (s)", overhead, f"<= {MAP_TARGETS['overhead_s']}",
+             overhead <= MAP_TARGETS["overhead_s"]),
+            ("map / the same points as separate processes (wall)", ratio, "<= 1/3",
+             ratio <= MAP_TARGETS["vs_processes"]),
+            ("speed-up on 2 ranks (two groups of one)", speedup, f">= {MAP_TARGETS['speedup']}",
+             speedup >= MAP_TARGETS["speedup"])]
+    lines = [MAP_HEADING, "", f"{made} Machine: {machine['cpu']}, {machine['cores']} cores; "
+             f"`{MAP_CONFIG.relative_to(ROOT)}`: {n} points, N = 8..128.", "",
+             "| target | measured | target | met |", "|---|---|---|---|"]
+    lines += [f"| {what} | {value:.3f} | {limit} | {'yes' if met else '**no**'} |"
+              for what, value, limit, met in rows]
+    lines += ["", "| run | wall (s) | levels' solves (s) | exit |", "|---|---|---|---|",
+              f"| map, serial | {r['serial'][0]:.1f} | {r['serial_solves']:.1f} | {r['serial'][1]} |",
+              f"| map, its first point alone (`--points 0`) | {r['one'][0]:.1f} | {r['one_solves']:.1f} | "
+              f"{r['one'][1]} |",
+              f"| map, `mpirun -n 2` | {r['ranks2'][0]:.1f} | {r['ranks2_solves']:.1f} | {r['ranks2'][1]} |",
+              f"| {n} separate `signorini run` | {r['alone'][0]:.1f} | {r['alone_solves']:.1f} | {r['alone'][1]} |",
+              "",
+              "Overhead per point = ((map wall − its levels' time_s) − (one-point map wall − its levels' "
+              f"time_s)) / {n - 1}: what a point costs beyond its solves once the process has started. The "
+              "levels' own time is shorter in the map than in separate processes: FFCx's modules are loaded once "
+              "per map.", ""]
+    return "\n".join(lines) + "\n"
+
+
+def splice(path, section):
+    """Replace the map section of the page at `path` (or append it), leaving the rest as it is."""
+    text = path.read_text() if path.exists() else ""
+    if MAP_HEADING in text:
+        before, after = text.split(MAP_HEADING, 1)
+        rest = after.split("\n## ", 1)
+        text = before.rstrip("\n") + "\n\n" + section + ("\n## " + rest[1] if len(rest) > 1 else "")
+    else:
+        text = text.rstrip("\n") + "\n\n" + section
+    path.write_text(text)
 
 
 if __name__ == "__main__":

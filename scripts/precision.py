@@ -145,7 +145,8 @@ def main(argv=None):
     parser.add_argument("--output", default=str(ROOT / "results" / "precision"), help="where the runs go")
     parser.add_argument("--page", help="also write the generated page here (make precision: docs/precision.md)")
     args = parser.parse_args(argv)
-    paths = [Path(p).resolve() for p in args.configs] or sorted((ROOT / "configs").rglob("*.yaml"))
+    paths = [Path(p).resolve() for p in args.configs] or sorted(p for p in (ROOT / "configs").rglob("*.yaml")
+                                                                if "maps" not in p.parts)  # maps: `make maps`
     lines = []
     for path in paths:
         print(f"== {path.relative_to(ROOT)}", file=sys.stderr, flush=True)

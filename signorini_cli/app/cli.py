@@ -67,6 +67,8 @@ def build_parser():
                      help="run even when the finest level looks too big for the available memory")
     run.add_argument("--resume", action="store_true", help="continue an interrupted study from its first "
                                                            "unfinished level (the config must be unchanged)")
+    run.add_argument("--points", metavar="RANGES", help="a map: run only these points, e.g. 0-49 or 0-9,20 "
+                                                        "(a batch array job's chunk)")
     noise = run.add_mutually_exclusive_group()
     noise.add_argument("--quiet", action="store_true", help="print nothing but errors (results still written)")
     noise.add_argument("--verbose", action="store_true", help="also PETSc's SNES and KSP monitors")

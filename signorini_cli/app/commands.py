@@ -1,5 +1,6 @@
 """The commands: run (a study of any type), check (resolved config), init (the commented template), list
 (shipped configs), report and compare; their exit statuses and the one-line error of bad input."""
+import contextlib
 import dataclasses
 import hashlib
 import logging
@@ -19,7 +20,7 @@ from ..record import results, resume
 from ..report import plots, progress, tables
 from ..solve import preflight, solver
 from ..system import errors
-from . import guard, resources
+from . import guard, maps, resources
 
 logger = logging.getLogger(__name__)
 
@@ -90,7 +91,10 @@ def _description(path):
 
 
 def report_study(args):
-    """Tables and plots of a finished or partial study of any type from its study.h5 (or rates.csv)."""
+    """Tables and plots of a finished or partial study of any type from its study.h5 (or rates.csv) (a map: map.csv,
+    its figures and tables from its points' folders)."""
+    if maps.is_map(args.path):
+        return report_map(args)
     try:
         study = results.load(args.path)
         cfg = study_config(study)
@@ -121,6 +125,17 @@ def columns_suffix(columns):
     if len(slug) > 48:
         slug = slug[:39] + "-" + hashlib.sha256(columns.encode()).hexdigest()[:8]
     return "-" + slug
+
+
+def report_map(args):
+    """A map's outputs redrawn from its folder."""
+    try:
+        text = maps.report(args.path, draw=not args.no_plots) if MPI.COMM_WORLD.rank == 0 else None
+    except (ConfigError, yaml.YAMLError, OSError) as err:
+        return fail(args.path, err)
+    if text:
+        emit([text])
+    return EXIT_OK
 
 
 def study_config(study):
@@ -200,6 +215,10 @@ def _labels(found):
 def _run_command(args):
     try:
         cfg = _load(args)
+        if studies.of(cfg.study_type).POINTS:
+            return _run_map(cfg, args)
+        if args.points:
+            raise ConfigError("--points", f"chooses points of a map; study_type is {cfg.study_type}")
         lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD)  # writable, and no other run writes it
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return fail(args.config, err)
@@ -216,6 +235,19 @@ def _run_command(args):
         except ConfigError as err:  # refused before solving: a problem not posed right (problems/posed.py), or an
             # option PETSc rejects only in a real solve (on every rank)
             return fail(args.config, err)
+
+
+def _run_map(cfg, args):
+    """A map: on map.jobs local workers (under mpirun); one run per map folder, while a chunk (--points)
+    locks its points one by one instead, so that chunks of one map may run side by side."""
+    if cfg.map.jobs > 1 and MPI.COMM_WORLD.size == 1:
+        maps.relaunch(cfg.map.jobs)
+    try:
+        lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD) if not args.points else contextlib.nullcontext()
+        with lock:
+            return maps.run(cfg, args.points, force=args.force, resume_map=args.resume, quiet=args.quiet)
+    except (ConfigError, OSError) as err:
+        return fail(args.config, err)
 
 
 def run(cfg, quiet=False, verbose=False, done=()):

@@ -42,7 +42,8 @@ REFERENCE_EPSILONS = ("per_level", "fixed")
 MAX_REFERENCE_REFINEMENTS = 3  # depth 3 is 64 (2-D) or 512 (3-D) times a level's cells
 # rate columns an `expect:` block may name: exact-solution errors, errors against a reference, differences
 ERROR_NORMS, REFERENCE_NORMS = names.ERROR_NORMS, names.REFERENCE_NORMS
-STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error")  # the last three: docs/limit.md
+# the ε → 0 studies: docs/limit.md; map: docs/maps.md
+STUDY_TYPES = ("refinement", "signorini", "epsilon_sweep", "total_error", "map")
 EXACT_SOLVES = ("compliance", "signorini")
 DOCS = "docs/reference/config.md"  # where every key is described; `signorini init` prints them all
 
@@ -282,7 +283,10 @@ class Config:
     output: Output = key(Output(), "where and what is written")
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
-    study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error")
+    study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error | map")
+    map: object = key(None, "a rate map: dotted keys -> values, one refinement study per combination",
+                      example={"grid": {"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]}, "jobs": 1,
+                               "ranks_per_point": 1}, only="only with study_type: map")
     limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)", only="only with study_type: epsilon_sweep or total_error")
     material: Material = key(None, "elasticity: {E, nu}", only="only with problem.pde: elasticity")
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
@@ -480,7 +484,7 @@ def from_dict(raw, folder=None):
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=top.string("description", empty=True), outside_theory=outside,
                   element=_element(top.section("element"), "element"))
-    return _check_element(_study_type(_check_geometry_mesh(_elastic_verification(base, raw), raw), raw), raw)
+    return _check_element(_study_type(_check_geometry_mesh(_elastic_verification(base, raw), raw), raw, folder), raw)
 
 
 def _dimension(value, mesh):
@@ -498,7 +502,7 @@ def _check_geometry_mesh(cfg, raw):
     curved boundary not even the same polygon), but a reference solution or successive differences move
     each level onto a finer one."""
     v, mesh = cfg.verification, cfg.mesh
-    if mesh.kind in GEOMETRY_KINDS and _Section(raw, "", Config).get("study_type") != "refinement":
+    if mesh.kind in GEOMETRY_KINDS and _Section(raw, "", Config).get("study_type") not in ("refinement", "map"):
         raise ConfigError("mesh.kind", f"{mesh.kind} meshes serve refinement studies, not study_type "
                                        f"{raw['study_type']}")
     data_only = cfg.problem.exact is None
@@ -971,9 +975,14 @@ def _exact_solves(raw, path, exact):
     return solves
 
 
-def _study_type(cfg, raw):
-    """Validate study_type, and for the ε → 0 studies their problem and limit block."""
+def _study_type(cfg, raw, folder=None):
+    """Validate study_type, and for the ε → 0 studies their problem and limit block; a map's points."""
     kind = _Section(raw, "", Config).choice("study_type", STUDY_TYPES)
+    if "map" in raw and kind != "map":
+        raise ConfigError("map", "only meaningful with study_type map")
+    if kind == "map":
+        from . import map as rate_map  # the map section validates its points with this module's from_dict
+        return dataclasses.replace(cfg, study_type=kind, map=rate_map.parse(raw, cfg, folder))
     if kind == "refinement":
         if "limit" in raw:
             raise ConfigError("limit", "only meaningful with study_type epsilon_sweep or total_error")
@@ -1326,13 +1335,18 @@ def _mesh_dict(mesh):
     return out
 
 
+def _derived(section):
+    """The fields of a section derived from its keys (a map's resolved points): not settings themselves."""
+    return {f.name for f in dataclasses.fields(section) if f.metadata.get("derived")}
+
+
 def _plain(value):
     if isinstance(value, expressions.Expression):
         return value.text
     if dataclasses.is_dataclass(value):
         fields = ((f.name, getattr(value, f.name)) for f in dataclasses.fields(value))
         return {name: dict(item) if name == "petsc_options" else _plain(item)  # (name, value) pairs
-                for name, item in fields if item is not None}
+                for name, item in fields if item is not None and name not in _derived(value)}
     if isinstance(value, tuple):
         return [_plain(v) for v in value]
     return value

@@ -18,6 +18,7 @@ from .level import Figure, Level, Table, rate_table, work_precision_rows
 NAME = "refinement"
 UNIT = "levels"  # what status.txt and the progress lines count
 RESUMABLE = True  # --resume continues after the levels in study.h5
+POINTS = False  # a study of its own levels or solves (a map: points, run and recorded by app/maps)
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):

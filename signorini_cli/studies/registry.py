@@ -1,7 +1,9 @@
 """The study types by name. A study type is one module of this folder that runs its solves and says what
 its record and report hold; a new type is a new module and one entry below. Each module has:
 
-    NAME, UNIT ("levels" or "solves": what status.txt counts), RESUMABLE (--resume continues it),
+    NAME, UNIT ("levels", "solves" or "points": what status.txt counts), RESUMABLE (--resume continues it),
+    POINTS (a map: points that are studies of their own, run and recorded by app/maps; the rest below is
+    then not needed),
     run(cfg, on_level, comm, monitor, done) -> result (iterating a result gives every solve),
     tables(cfg, result) -> {name: rows}, the main table first ("a/b": in study.h5 only, no CSV),
     summary(cfg, result) -> a verdict.Summary (summary.csv) or None,
@@ -13,9 +15,9 @@ its record and report hold; a new type is a new module and one entry below. Each
 """
 from mpi4py import MPI
 
-from . import refinement, signorini, sweep, total
+from . import rate_map, refinement, signorini, sweep, total
 
-STUDY_TYPES = {module.NAME: module for module in (refinement, signorini, sweep, total)}
+STUDY_TYPES = {module.NAME: module for module in (refinement, signorini, sweep, total, rate_map)}
 
 
 def of(name):

@@ -15,6 +15,7 @@ from .refinement import compared, levels_of, parts, reported, summary, tables  #
 NAME = "signorini"
 UNIT = "levels"
 RESUMABLE = False  # the VI's levels are not read back from study.h5
+POINTS = False  # a study of its own levels or solves (a map: points, run and recorded by app/maps)
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):

@@ -18,6 +18,7 @@ from .signorini import signorini_level
 NAME = "epsilon_sweep"
 UNIT = "solves"
 RESUMABLE = False
+POINTS = False  # a study of its own levels or solves (a map: points, run and recorded by app/maps)
 MODEL_ERRORS = ("L2", "H1", "L2_gamma_c", "penetration")  # of u_{ε,h} − u_{S,h} (measure.model_differences)
 SWEEP_COLUMNS = ("N", "h", "dofs", "alpha", "epsilon", "converged", "newton_its",
                  "L2", "rate_L2", "H1", "rate_H1", "L2_gamma_c", "rate_L2_gamma_c",

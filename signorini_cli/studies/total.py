@@ -13,6 +13,7 @@ from .level import NORMS, Figure, Table, rate_table
 NAME = "total_error"
 UNIT = "solves"
 RESUMABLE = False
+POINTS = False  # a study of its own levels or solves (a map: points, run and recorded by app/maps)
 PARTS = "studies/"  # the tables of the sub-studies, in study.h5 only: each has its rates.csv in its folder
 
 

@@ -1,0 +1,142 @@
+"""The rate map's config section (study_type: map): dotted config keys with lists of values; every
+combination, and every explicit point, is one refinement study, validated here before any solve."""
+import copy
+import dataclasses
+import itertools
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from . import settings
+from .settings import ConfigError
+
+KEYS = ("grid", "points", "jobs", "ranks_per_point")
+# what names, places or makes the map itself: a point takes these from the map
+FIXED = ("study", "study_type", "map", "output", "description")
+
+
+@dataclass(frozen=True)
+class Map:
+    """The grid (dotted key -> values), explicit points, local workers and MPI ranks per point; `studies`
+    are the points' validated configs, in point order."""
+    grid: dict
+    points: tuple
+    jobs: int
+    ranks_per_point: int
+    studies: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
+    values: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
+
+    @property
+    def varied(self):
+        """The varied keys, grid first, in the order given: the columns of map.csv."""
+        keys = list(self.grid)
+        for point in self.points:
+            keys += [key for key in point if key not in keys]
+        return tuple(keys)
+
+
+def parse(raw, base, folder):
+    """The `map` block of the config mapping `raw` (whose other keys validated as `base`), with every
+    point's config: a key or value a single study refuses is a ConfigError naming key, value and point."""
+    block = raw.get("map")
+    if block is None:
+        raise ConfigError("map", "missing: study_type map needs a map block (map.grid)")
+    settings._keys(block, "map", optional=KEYS)
+    grid = _grid(block.get("grid", {}), "map.grid")
+    listed = _list(block.get("points", []), "map.points")
+    points = tuple(_point(p, f"map.points[{i}]") for i, p in enumerate(listed))
+    if not grid and not points:
+        raise ConfigError("map.grid", "give at least one dotted key with its list of values")
+    values = tuple(dict(zip(grid, combo)) for combo in itertools.product(*grid.values())) + points
+    wheres = ["map.grid.{key}"] * (len(values) - len(points)) + [f"map.points[{i}].{{key}}" for i in range(len(points))]
+    studies = tuple(point_config(raw, k, point, base.output_dir / "points", folder, where)
+                    for k, (point, where) in enumerate(zip(values, wheres)))
+    return Map(grid, points, settings._integer(block.get("jobs", 1), "map.jobs", low=1),
+               settings._integer(block.get("ranks_per_point", 1), "map.ranks_per_point", low=1), studies, values)
+
+
+def _grid(raw, path):
+    if not isinstance(raw, dict):
+        raise ConfigError(path, f"must be a mapping of dotted config keys to lists of values, got {settings._show(raw)}")
+    grid = {}
+    for key, values in _dotted(raw):
+        _check_key(key, f"{path}.{key}")
+        grid[key] = _list(values, f"{path}.{key}")
+        if not grid[key]:
+            raise ConfigError(f"{path}.{key}", "must be a non-empty list of values")
+    return grid
+
+
+def _dotted(raw, prefix=""):
+    """(dotted key, values) pairs; nested mappings (from `--set map.grid.epsilon.theta=[...]`) joined by dots."""
+    for key, value in raw.items():
+        if isinstance(value, dict) and isinstance(key, str):
+            yield from _dotted(value, f"{prefix}{key}.")
+        else:
+            yield f"{prefix}{key}", value
+
+
+def _point(raw, path):
+    if not isinstance(raw, dict) or not raw:
+        raise ConfigError(path, f"must be a mapping of dotted config keys to values, got {settings._show(raw)}")
+    for key in raw:
+        _check_key(key, f"{path}.{key}")
+    return dict(raw)
+
+
+def _list(raw, path):
+    if not isinstance(raw, list):
+        raise ConfigError(path, f"must be a list, got {settings._show(raw)}")
+    return list(raw)
+
+
+def _check_key(key, path):
+    if not isinstance(key, str) or not key.strip():
+        raise ConfigError(path, "must be a dotted config key such as epsilon.theta")
+    if key.split(".")[0] in FIXED:
+        raise ConfigError(path, f"cannot vary: the map gives its points {', '.join(FIXED)}")
+
+
+def point_config(raw, k, point, folder, files, where):
+    """Point k's Config: the map's config with the point's values, named k, written into folder/k/."""
+    study = {name: copy.deepcopy(value) for name, value in raw.items() if name not in ("map", "study_type")}
+    try:
+        for key, value in point.items():
+            settings.set_path(study, key, copy.deepcopy(value))
+        study.update(study=str(k), output=dict(study.get("output") or {}, dir=str(folder)))
+        cfg = settings.from_dict(study, files)
+    except ConfigError as err:
+        key = next((key for key in point if err.path.startswith(key)), next(iter(point)))
+        raise ConfigError(where.format(key=key), f"point {k} ({describe(point)}): {err}") from None
+    text = yaml.safe_dump(settings.to_dict(cfg), sort_keys=False, allow_unicode=True)
+    return dataclasses.replace(cfg, text=text)
+
+
+def describe(point):
+    """key=value, ... of a point (one line)."""
+    return ", ".join(f"{key}={_value(value)}" for key, value in point.items())
+
+
+def _value(value):
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def chunk(text, count):
+    """The point indices of `--points 0-49,60` (inclusive ranges), checked against the map's count."""
+    chosen = set()
+    for part in str(text).split(","):
+        first, _, last = part.strip().partition("-")
+        try:
+            lo, hi = int(first), int(last or first)
+        except ValueError:
+            raise ConfigError("--points", f"expected ranges such as 0-49,60, got {text!r}") from None
+        if not 0 <= lo <= hi < count:
+            raise ConfigError("--points", f"{part.strip()} is not within the map's points 0-{count - 1}")
+        chosen.update(range(lo, hi + 1))
+    return sorted(chosen)
+
+
+def folder_of(cfg):
+    """Where a map's points are written: <map folder>/points/."""
+    return Path(cfg.output_dir) / "points"
