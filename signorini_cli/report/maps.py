@@ -4,7 +4,7 @@ import itertools
 import math
 from pathlib import Path
 
-from ..record import results
+from ..record import csvfile
 from ..studies import rate_map
 from ..system import files
 from . import plots
@@ -25,7 +25,7 @@ def write(folder, rows, varied, draw=True):
     folder = Path(folder)
     norms = rate_map.norms_of(rows)
     shown = shown_norms(norms)
-    texts = {MAP_FILE: results.csv_text(rows, rate_map.columns(varied, norms)),
+    texts = {MAP_FILE: csvfile.text(rows, rate_map.columns(varied, norms)),
              "map.tex": latex_table(rows, varied, shown), "map.md": markdown_table(rows, varied, shown)}
     files.replace_all([(folder / name, lambda path, text=text: path.write_text(text)) for name, text in texts.items()])
     written = [folder / name for name in texts]
