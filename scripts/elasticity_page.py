@@ -157,7 +157,7 @@ def page():
     body += manufactured(folders)
     body += hertz_section(folders)
     head = ["# Linear elasticity with normal compliance", "", provenance.line("elasticity", folders), "",
-            "The elastic problem (README, \"Linear elasticity\"): −div σ(u) = f, u = u_D on Γ_D, "
+            "The elastic problem (docs/guide/elasticity.md): −div σ(u) = f, u = u_D on Γ_D, "
             "ε σ_n(u) + [u·n − g0]_+^α = ĝ_n and σ_t(u) = ĝ_t on Γ_C, P1 vector Lagrange, the contact term "
             "integrated exactly on w_h = u_h·n − g0 (linear on each flat facet). H1 is the seminorm of the "
             "vector error; energy_err = (a(e, e) + ε⁻¹‖[w]_+ − [w_h]_+‖^{α+1}_{L^{α+1}(Γ_C)})^{1/2}; pos_gc = "

@@ -26,7 +26,7 @@ where the proven rate carries |ln h| (d = 2, alpha > 2) the verdict's rate is th
 fit of e is given beside it. The problems are the manufactured ones of the shipped studies (u = sin(2 pi x)(1-y)^2
 in 2-D, sin(2 pi x) sin(pi y)(1-z)^2 in 3-D, contact on y = 0 resp. z = 0, data g making u exact at every eps):
 a map says where a rate holds on these problems, not in general.
-How to read the verdicts, and how to run a map of your own: README.md, section "Rate maps".
+How to read the verdicts, and how to run a map of your own: docs/guide/maps.md.
 """
 
 
