@@ -59,10 +59,11 @@ def test_data_only_counts_its_reference_solution(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(resources, "available_bytes", lambda: 2**30)
     path = write(tmp_path, mesh={"refinements": [8, 512]}, problem={"exact": None, "f": "-10"})
     assert cli.main(["run", path]) == cli.EXIT_BAD_INPUT
-    # 513^2 + 1025^2 = 1,313,794 dofs (the reference mesh is twice finer), 7 nonzeros per row: 2.3 GiB
+    # 513^2 + 2049^2 = 4,461,570 dofs (the reference mesh is two refinements finer, the default depth), 7
+    # nonzeros per row: 100 MiB + 1000 B/dof + 110 B/nonzero = 7.5 GiB
     assert capsys.readouterr().err == (
         f"signorini: error: {path}: mesh.refinements: the finest level with its reference solution (N=512 and "
-        "N=1024: 1,313,794 dofs, 9,196,558 Jacobian nonzeros) needs about 2.3 GiB of memory, more than the 1.0 "
+        "N=2048: 4,461,570 dofs, 31,230,990 Jacobian nonzeros) needs about 7.5 GiB of memory, more than the 1.0 "
         "GiB available; use --ignore-memory-check to run it anyway\n")
 
 
