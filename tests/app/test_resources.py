@@ -142,8 +142,8 @@ def test_gmsh_data_only_counts_its_reference(tmp_path, monkeypatch):
     cfg = config.load(gmsh_config(tmp_path, sizes=[0.1, 0.01]))
     cfg = dataclasses.replace(cfg, problem=dataclasses.replace(cfg.problem, exact=None))
     peak = resources.peak_meshes(cfg, MPI.COMM_SELF)
-    # 1.15 / 0.01^2 = 11,500 vertices, and 4 times as many after the reference's one refinement
-    assert [(label, dofs) for label, dofs, _ in peak] == [("size 0.01", 11500), ("size 0.01 refined 1 times", 46000)]
+    # 1.15 / 0.01^2 = 11,500 vertices, and 16 times as many after the reference's two refinements (the default)
+    assert [(label, dofs) for label, dofs, _ in peak] == [("size 0.01", 11500), ("size 0.01 refined 2 times", 184000)]
 
 
 @pytest.mark.parametrize("geometry, size", [("unit_square", 0.02), ("half_disk", 0.02), ("l_shape", 0.05),
