@@ -40,9 +40,9 @@ def run(cfg, points=None, force=False, resume_map=False, quiet=False, comm=MPI.C
     converged, else 1."""
     count = len(cfg.map.studies)
     chosen = map_config.chunk(points, count) if points else list(range(count))
-    ended = _shared(comm, lambda: _ended(cfg, chosen)) if resume_map else set()
+    ended = resume.on_rank_zero(comm, lambda: _ended(cfg, chosen)) if resume_map else set()
     if not (force or resume_map):
-        _shared(comm, lambda: _check_fresh(cfg, chosen, whole=not points))
+        resume.on_rank_zero(comm, lambda: _check_fresh(cfg, chosen, whole=not points))
     if comm.rank == 0:
         _start(cfg, count, ended)
     recorder = Recorder(cfg, comm, quiet, chunked=bool(points))
@@ -61,20 +61,6 @@ def run(cfg, points=None, force=False, resume_map=False, quiet=False, comm=MPI.C
             print(text)
     ok = all(p.failure == "" and p.levels and all(lv.outcome.converged for lv in p.levels) for p in ran)
     return 0 if comm.allreduce(ok, op=MPI.LAND) else 1
-
-
-def _shared(comm, find):
-    """find() on rank 0, its result (or its ConfigError) on every rank."""
-    found = None
-    if comm.rank == 0:
-        try:
-            found = ("ok", find())
-        except ConfigError as err:
-            found = ("error", (err.path, err.message))
-    kind, value = comm.bcast(found, root=0)
-    if kind == "error":
-        raise ConfigError(*value)
-    return value
 
 
 def point_status(cfg):

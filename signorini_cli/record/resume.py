@@ -17,10 +17,15 @@ FORCE = "use --force to start over"
 def finished_levels(cfg, comm):
     """The levels of `cfg` already in its study.h5, read on rank 0 and broadcast; [] when there is no
     study.h5. ConfigError on every rank when they cannot be continued (another config, unreadable)."""
+    return on_rank_zero(comm, lambda: read_levels(cfg))
+
+
+def on_rank_zero(comm, find):
+    """find() on rank 0 (which reads the files), its result, or its ConfigError, on every rank."""
     found = None
     if comm.rank == 0:
         try:
-            found = ("levels", read_levels(cfg))
+            found = ("ok", find())
         except ConfigError as err:
             found = ("error", (err.path, err.message))
     kind, value = comm.bcast(found, root=0)
