@@ -65,7 +65,7 @@ def test_positive_fraction(values, fraction):
 def test_contact_force_and_errors_of_a_known_function():
     domain = meshes.build(config.Mesh("unit_square"), "bottom", 4, MPI.COMM_SELF)
     u = p1(domain, lambda x: x[0])
-    ds_c = domain.ds_c(measure.ERROR_DEGREE)
+    ds_c = domain.ds_c(measure.contact_error_degree(u.function_space))
     # ∫_0^1 x^2 dx = 1/3, in closed form for the P1 function
     dofs, points = measure.contact_facet_dofs(u.function_space, domain.facet_tags, CONTACT)
     assert contact.positive_power(u, dofs, points, 2.0) == pytest.approx(1 / 3, rel=1e-14)

@@ -16,7 +16,7 @@ from dolfinx.fem import petsc as fem_petsc
 from signorini_cli import studies
 from signorini_cli.studies import refinement as refinement_study
 from signorini_cli.app import cli
-from signorini_cli.problems import contact
+from signorini_cli.config import ConfigError
 from signorini_cli.solve import solver, strategies
 from conftest import BASE, merge
 
@@ -24,12 +24,12 @@ NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature poin
 INF_DATA = {"exact": None, "f": "exp(1000*x)"}  # overflows to Inf for x > 0.71
 
 
-@pytest.mark.parametrize("problem", [pytest.param(NAN_DATA, id="nan"), pytest.param(INF_DATA, id="inf")])
-@pytest.mark.parametrize("on_failure, levels", [("continue", 2), ("stop", 1)])
-def test_nonfinite_data_fails_levels(make_config, problem, on_failure, levels):
-    done = studies.run_study(make_config(problem=problem, solver={"on_failure": on_failure}))
-    assert len(done) == levels
-    assert all(not lv.outcome.converged and lv.outcome.reason == "DIVERGED_FNORM_NAN" for lv in done)
+@pytest.mark.parametrize("problem, value", [pytest.param(NAN_DATA, "nan", id="nan"),
+                                            pytest.param(INF_DATA, "inf", id="inf")])
+def test_nonfinite_data_refused_before_solving(make_config, problem, value):
+    # the data are checked at the points the solve evaluates them (problems/posed.py), before level 0
+    with pytest.raises(ConfigError, match=rf"problem.f: .* is {value} at \("):
+        studies.run_study(make_config(problem=problem))
 
 
 def patch_after(monkeypatch, name, calls, spoil):
@@ -69,11 +69,9 @@ def test_nonfinite_level_in_cli(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text(yaml.safe_dump(merge(BASE, {"problem": NAN_DATA, "solver": {"on_failure": "stop"},
                                                 "output": {"dir": str(tmp_path / "out"), "plots": False}})))
-    assert cli.main(["run", str(path)]) == cli.EXIT_NOT_CONVERGED
+    assert cli.main(["run", str(path)]) == cli.EXIT_BAD_INPUT  # one line, nothing solved
     with open(tmp_path / "out" / "t" / "rates.csv") as f:
-        (row,) = csv.DictReader(f)
-    assert row["converged"] == "false" and row["reason"] == "DIVERGED_FNORM_NAN"
-    assert (tmp_path / "out" / "t" / "status.txt").read_text() == "failed at level 0: DIVERGED_FNORM_NAN\n"
+        assert list(csv.DictReader(f)) == []
 
 
 TEST = solver.SuccessTest(rtol=1e-10, atol=1e-12, stol=1e-8, max_it=50, scale=2.0)

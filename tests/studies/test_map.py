@@ -16,6 +16,7 @@ from mpi4py import MPI
 from signorini_cli import config, studies
 from signorini_cli.app import cli, maps
 from signorini_cli.record import resume
+from signorini_cli.studies import refinement as refinement_study
 from conftest import BASE, merge
 
 SIGNORINI = str(Path(sys.executable).with_name("signorini"))
@@ -118,12 +119,19 @@ def test_points_are_their_single_studies(tmp_path_factory, grid, refinements):
         assert len(map_rows(folder / "world" / "m")) == len(cfg.map.studies)
 
 
-def test_failing_point_is_recorded_and_the_map_goes_on(tmp_path, capsys):
-    # PETSc refuses an unknown preconditioner as the solve sets up: an exception inside the point's study
-    path = write_map(tmp_path, {"solver.petsc_options.pc_type": ["bogus", "lu"]}, (4, 8))
+def test_failing_point_is_recorded_and_the_map_goes_on(tmp_path, capsys, monkeypatch):
+    # an exception inside the first point's study (alpha = 2), as a bug in a level would raise
+    solve_level = refinement_study.solve_level
+
+    def fails_at_alpha_2(cfg, index, *args, **kwargs):
+        if cfg.alpha == 2:
+            raise RuntimeError("the level fails")
+        return solve_level(cfg, index, *args, **kwargs)
+    monkeypatch.setattr(refinement_study, "solve_level", fails_at_alpha_2)
+    path = write_map(tmp_path, {"alpha": [2, 3]}, (4, 8))
     assert cli.main(["run", path]) == 1
     rows = map_rows(tmp_path / "m")
-    assert rows[0]["status"].startswith("failed at level 0: Error") and rows[0]["converged"] == "false"
+    assert rows[0]["status"].startswith("failed at level 0: RuntimeError") and rows[0]["converged"] == "false"
     assert rows[1]["status"] == "complete" and rows[1]["converged"] == "true"
     assert (tmp_path / "m" / "status.txt").read_text() == "complete\n"
     assert "point 0: failed at level 0" in capsys.readouterr().out
