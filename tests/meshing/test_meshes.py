@@ -16,7 +16,6 @@ from dolfinx import fem
 from signorini_cli import config, studies
 from signorini_cli.meshing import grids, meshes
 
-pytestmark = pytest.mark.fast
 
 ROOT = Path(__file__).resolve().parents[2]
 KINDS = [pytest.param("unit_square", d, id=f"square-{d}") for d in ("right", "left", "crossed")]
@@ -49,6 +48,7 @@ def dofs_of(msh):
     return fem.FunctionSpace(msh, ("Lagrange", 1)).dofmap.index_map.size_global
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind, diagonal", KINDS)
 @pytest.mark.parametrize("n", [1, 3, 8])
 def test_same_cells_as_dolfinx_serial(kind, diagonal, n):
@@ -81,6 +81,7 @@ def test_vertices_on_the_cut_are_shared():
     assert owned_cells == [64, 64]  # 4 rows of 16 triangles each: the slabs split the 8 rows evenly
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("count, size", [(8, 2), (7, 3), (2, 4), (1024, 8)])
 def test_local_range_blocks_cover_once(count, size):
     blocks = [grids.local_range(rank, count, size) for rank in range(size)]
@@ -91,6 +92,7 @@ def test_local_range_blocks_cover_once(count, size):
         assert (grids.row_owner(np.arange(start, stop), count, size) == rank).all()
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind, diagonal", KINDS)
 @pytest.mark.parametrize("comm", [pytest.param(MPI.COMM_SELF, id="serial"),
                                   pytest.param(MPI.COMM_WORLD, id="world", marks=pytest.mark.mpi)])
@@ -185,6 +187,7 @@ def test_shipped_configs_same_errors_parallel(path, monkeypatch):
     compare_with_dolfinx_meshes(path, MPI.COMM_WORLD, monkeypatch)
 
 
+@pytest.mark.fast
 @pytest.mark.parametrize("kind, diagonal", KINDS)
 @pytest.mark.parametrize("comm", [pytest.param(MPI.COMM_SELF, id="serial"),
                                   pytest.param(MPI.COMM_WORLD, id="world", marks=pytest.mark.mpi)])
