@@ -192,8 +192,8 @@ def _name(key):
 def heat_map(rows, norm, a, b, others):
     """Fitted − proven rate of `norm` on the grid of keys a (x) and b (y), a panel per combination of
     the other keys; diverging colours centred at 0, the verdict as a marker, `not covered` grey."""
-    import matplotlib.pyplot as plt
     from matplotlib.colors import TwoSlopeNorm
+    from matplotlib.figure import Figure
     xs, ys = _axis_values(rows, a)[0], _axis_values(rows, b)[0]
     combos = _fixed(rows, others)
     per_row = max(1, min(len(combos), 2))
@@ -203,7 +203,7 @@ def heat_map(rows, norm, a, b, others):
     panel_w = (width - left - right - (per_row - 1) * 0.5) / per_row
     panel_h = max(0.9, 0.22 * len(ys) + 0.2)
     height = top + n_rows * panel_h + (n_rows - 1) * gap + below
-    fig = plt.figure(figsize=(width, height))
+    fig = Figure(figsize=(width, height))  # no pyplot: no GUI backend, no global figure state
     colour, image = TwoSlopeNorm(0.0, -SPAN, SPAN), None
     for n, combo in enumerate(combos):
         r, c = divmod(n, per_row)
@@ -266,10 +266,11 @@ def _verdict_legend(fig):
 def rate_lines(rows, norm, key, others):
     """The fitted rate of `norm` against `key`, one curve per combination of the other keys (at most
     MAX_LINES: the first ones in map order), its proven rate dotted in the same colour."""
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     xs, numeric, logarithmic = _axis_values(rows, key)
     combos = _fixed(rows, others)[:MAX_LINES]
-    fig, ax = plt.subplots(figsize=(plots.WIDTH_PT / 72, 2.6))
+    fig = Figure(figsize=(plots.WIDTH_PT / 72, 2.6))
+    ax = fig.add_subplot()
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.16, top=0.91)
     for i, combo in enumerate(combos):
         fixed = dict(zip(others, combo))
