@@ -1,5 +1,8 @@
 """Shared fixtures: a config factory for small studies."""
 import copy
+import os
+import subprocess
+from contextlib import contextmanager
 
 import pytest
 import yaml
@@ -67,3 +70,16 @@ def partial_study(make_config):
     with pytest.raises(Interrupt):
         studies.run_study(cfg, on_level=write_then_stop)
     return cfg
+
+
+@contextmanager
+def mounted(folder, options):
+    """A tmpfs mounted on `folder` (root only: the test is skipped elsewhere), unmounted after."""
+    folder.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
+                                           capture_output=True).returncode != 0:
+        pytest.skip("needs root to mount a tmpfs")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], check=True)

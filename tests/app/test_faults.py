@@ -10,7 +10,6 @@ import signal
 import subprocess
 import sys
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -19,13 +18,12 @@ import yaml
 from mpi4py import MPI
 
 from signorini_cli.app import cli, guard
-from signorini_cli.record import h5 as record_h5, results
+from signorini_cli.record import h5 as record_h5
 from signorini_cli.report import tables
 from signorini_cli.solve import solver
-from conftest import BASE, merge
+from conftest import BASE, merge, mounted
 
 SIGNORINI = str(Path(sys.executable).with_name("signorini"))
-ROOT = os.geteuid() == 0
 
 
 def write_config(folder, refinements=(4, 8), **changes):
@@ -51,17 +49,6 @@ def tree(folder):
     return sorted(str(p.relative_to(folder)) for p in Path(folder).rglob("*"))
 
 
-@contextmanager
-def mounted(folder, options):
-    """A tmpfs mounted on `folder` (root only: the test is skipped elsewhere), unmounted after."""
-    folder.mkdir()
-    if not ROOT or subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
-                                  capture_output=True).returncode != 0:
-        pytest.skip("needs root to mount a tmpfs")
-    try:
-        yield folder
-    finally:
-        subprocess.run(["umount", str(folder)], check=True)
 
 
 # --- class 2: bad surroundings -------------------------------------------------------------------

@@ -5,7 +5,6 @@ import os
 import shutil
 import subprocess
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -15,7 +14,7 @@ from mpi4py import MPI
 from signorini_cli.app import cli, guard
 from signorini_cli.studies import refinement as refinement_study
 import failing_run
-from conftest import BASE, merge
+from conftest import BASE, merge, mounted
 
 SIGNORINI = str(Path(sys.executable).with_name("signorini"))
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
@@ -35,17 +34,6 @@ def rows(study):
         return list(csv.DictReader(f))
 
 
-@contextmanager
-def mounted(folder, options):
-    """A tmpfs mounted on `folder` (root only: the test is skipped elsewhere), unmounted after."""
-    folder.mkdir()
-    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
-                                           capture_output=True).returncode != 0:
-        pytest.skip("needs root to mount a tmpfs")
-    try:
-        yield folder
-    finally:
-        subprocess.run(["umount", str(folder)], check=True)
 
 
 # --- the command line ----------------------------------------------------------------------------
