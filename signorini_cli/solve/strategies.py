@@ -96,8 +96,9 @@ def descend(newton, problem, eps, solver_cfg, solved_eps):
 def checked(newton, problem, outcome):
     """The residual check of a solve that passed the success test: the exact Newton correction at its
     iterate (a direct solve, or CG + AMG to linear_rtol, never the user's PETSc options) must be at most
-    EXACT_TOL ||u_h||, where the algebraic error of every reported quantity is below 1e-6 of it. The success test sees only the iterates' own steps, and a stationary or one-sweep
-    linear solver, a damped line search or a lagged Jacobian makes small steps far from the root. Else exact
+    EXACT_TOL ||u_h||, where the algebraic error of every reported quantity is below 1e-6 of it. The success
+    test sees only the iterates' own steps, and a stationary or one-sweep linear solver, a damped line
+    search or a lagged Jacobian makes small steps far from the root. Else exact
     Newton steps follow, up to EXACT_STEPS, until the correction passes or stalls at its round-off floor
     (below stol ||u_h||, no longer halving: the polish's rule); the Outcome says how many it took."""
     if not outcome.converged or problem.bounds is not None:  # the VI: PETSc's test on its reduced residual

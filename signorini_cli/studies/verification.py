@@ -107,7 +107,8 @@ class Verifier:
         Γ_C error quadrature of the element."""
         if self.cfg.element.degree == 1:
             return contact.positive_power(u_h, dofs, points, beta)
-        return measure.integrate(measure.positive(u_h) ** beta, domain.ds_c(measure.contact_error_degree(u_h.function_space)))
+        ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
+        return measure.integrate(measure.positive(u_h) ** beta, ds_c)
 
     def _energy(self, level, domain, u_h, forms, penalty):
         msh = domain.mesh
