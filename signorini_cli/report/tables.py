@@ -330,10 +330,17 @@ def caption_of(name, cfg=None, variational=False):
     return f"{text}: " + ", ".join(parts)
 
 
+def _typeset(expression):
+    """An expression of the config (or a vector of them: elasticity's components) as LaTeX."""
+    if isinstance(expression, tuple):
+        return r"\left(" + ", ".join(latex.expression(e.tree) for e in expression) + r"\right)"
+    return latex.expression(expression.tree)
+
+
 def _problem(problem):
     """$u = ...$ (manufactured), or the data $f = ...$ (and $g$); a formula too long for a caption named."""
     given = [("u", problem.exact)] if problem.exact is not None else [("f", problem.f), ("g", problem.g)]
-    typeset = [(symbol, latex.expression(e.tree)) for symbol, e in given if e is not None]
+    typeset = [(symbol, _typeset(e)) for symbol, e in given if e is not None]
     if any(len(tex) > 160 for _, tex in typeset):  # unbreakable in a caption line
         return "the solution or data as written in the study's config"
     words = "exact solution" if problem.exact is not None else "data"

@@ -12,6 +12,8 @@ from signorini_cli.config import expressions
 from signorini_cli.report import latex, tables
 from test_report import DEMO, demo_like
 
+ROOT = Path(__file__).resolve().parents[2]
+
 HOSTILE = [r"\input{/etc/passwd}", r"\write18{touch x}", "$x$ & 50% #1 ~ ^^5c", "{}}{", "é\x00\n"]
 SAFE_COMMAND = re.compile(r"\\(textbackslash|textasciitilde|textasciicircum|textless|textgreater|textbar)\{\}|"
                           r"\\[&%$#_{}]|\$\\[a-zA-Z]+\$")
@@ -139,3 +141,10 @@ def compile_log(folder, tex):
                            "doc.tex"], cwd=folder, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout[-2000:]
     return (folder / "doc.log").read_text()
+
+
+@pytest.mark.fast
+def test_caption_of_an_elastic_study_typesets_the_vector_solution():
+    cfg = config.load(ROOT / "configs/elasticity/square-alpha2.yaml")
+    caption = tables.caption_of(cfg.study, cfg)
+    assert r"$u = \left(" in caption and r"\right)$" in caption
