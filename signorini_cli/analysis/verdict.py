@@ -1,6 +1,7 @@
 """A study's verdict against the paper: per norm the fitted rate, the proven rate and whether they agree;
 per scalar quantity the observed order, Richardson extrapolation and GCI; the user's `expect:` block."""
 import math
+import textwrap
 from dataclasses import asdict, dataclass
 
 from ..config import expressions
@@ -9,6 +10,7 @@ from . import rates
 AGREES, EXCEEDS, BELOW, INCONCLUSIVE, NOT_COVERED = "agrees", "exceeds", "below", "inconclusive", "not covered"
 ROUND_OFF = 1e-12  # a proven rate on the interval's edge is inside it, whatever the last bit says
 MIN_LEVELS = 3  # two levels give a slope but no residual: nothing says how settled it is
+TERMINAL_WIDTH = 120  # the verdict block wraps its last column to fit a terminal of this width
 GCI_QUANTITIES = ("contact_force", "penetration", "energy")  # data-only scenes: what a user quotes
 RANGES = {"contact_force": (0.0, math.inf), "penetration": (0.0, math.inf), "energy": (-math.inf, math.inf)}
 
@@ -240,8 +242,9 @@ def format_summary(summary):
     lines = []
     if summary.outside_theory:
         lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
-    lines.append(f"verification: rates fitted over the last {summary.fit_levels} levels; interval: the fit ± 2 "
-                 f"standard errors, the successive rates and where they head; agrees only within ± {summary.tolerance:g}")
+    lines += textwrap.wrap(f"verification: rates fitted over the last {summary.fit_levels} levels; interval: the fit "
+                           f"± 2 standard errors, the successive rates and where they head; agrees only within "
+                           f"± {summary.tolerance:g}", TERMINAL_WIDTH)
     lines += [f"  {note}" for note in summary.notes]
     rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
     for v in summary.norms:
@@ -296,9 +299,17 @@ def _quantity_row(q):
     return (q.quantity, finest, order, f"{g.extrapolated:.6e}", f"{100 * g.gci:.3g}%", f"± {g.band:.2e}")
 
 
-def _aligned(rows):
-    widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]))]
-    return ["  " + "  ".join(str(cell).ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
+def _aligned(rows, width=TERMINAL_WIDTH):
+    """Rows in aligned columns; a last column that would pass `width` wraps under itself."""
+    widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]) - 1)]
+    lead = 2 + sum(w + 2 for w in widths)
+    room = max(width - lead, 30)
+    lines = []
+    for row in rows:
+        head = "  " + "".join(str(cell).ljust(w + 2) for cell, w in zip(row, widths))
+        last = textwrap.wrap(str(row[-1]), room) or [""]
+        lines += [(head if k == 0 else " " * lead) + part for k, part in enumerate(last)]
+    return [line.rstrip() for line in lines]
 
 
 def _rate(value):

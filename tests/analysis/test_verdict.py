@@ -106,6 +106,14 @@ def test_summarize_fits_and_judges(make_config):
     assert by_norm["L2"].lo == pytest.approx(2 - rates.MIN_HALF) and by_norm["L2"].hi == pytest.approx(2 + rates.MIN_HALF)
 
 
+def test_verdict_block_fits_a_terminal_of_120_columns(make_config):
+    # the reasons are long sentences ("... > proven 1.6: the bound is not sharp on this case"): they wrap
+    cfg = make_config(dimension=3, mesh={"kind": "unit_cube", "refinements": [5, 10, 20, 40]})
+    text = verdict.format_summary(verdict.summarize(cfg, levels({"L2": [h**1.98 for h in H]})))
+    assert max(map(len, text.splitlines())) <= 120
+    assert "the bound is not sharp on this case" in " ".join(text.split())
+
+
 def test_3d_alpha2_rate_2_exceeds_8_5(make_config):
     cfg = make_config(dimension=3, mesh={"kind": "unit_cube", "refinements": [5, 10, 20, 40]})
     (l2,) = verdict.summarize(cfg, levels({"L2": [h**1.98 for h in H]})).norms
