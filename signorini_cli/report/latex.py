@@ -59,7 +59,9 @@ def constant(value):
 
 SYMBOLS = {"pi": r"\pi", "e": "e", "eps": r"\varepsilon", "alpha": r"\alpha", "theta": r"\theta",
            "delta": r"\delta"}
-FUNCTIONS = {"sin": r"\sin", "cos": r"\cos", "exp": r"\exp", "log": r"\log", "tanh": r"\tanh"}
+FUNCTIONS = {"sin": r"\sin", "cos": r"\cos", "tan": r"\tan", "exp": r"\exp", "log": r"\log", "tanh": r"\tanh",
+             "sinh": r"\sinh", "cosh": r"\cosh", "asin": r"\arcsin", "acos": r"\arccos", "atan": r"\arctan",
+             "atan2": r"\operatorname{atan2}", "min": r"\min", "max": r"\max"}
 SUM, PRODUCT, UNARY, POWER, ATOM = range(5)  # binding strength
 
 
@@ -79,7 +81,7 @@ def _tex(node):
         text = _wrapped(node.operand, POWER if isinstance(node.op, ast.USub) else UNARY)
         return ("-" if isinstance(node.op, ast.USub) else "+") + text, UNARY
     if isinstance(node, ast.Call):
-        argument = _tex(node.args[0])[0]
+        argument = ", ".join(_tex(arg)[0] for arg in node.args)  # atan2(y, x), min(a, b): two
         if node.func.id == "sqrt":
             return rf"\sqrt{{{argument}}}", ATOM
         if node.func.id == "abs":

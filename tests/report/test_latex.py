@@ -148,3 +148,12 @@ def test_caption_of_an_elastic_study_typesets_the_vector_solution():
     cfg = config.load(ROOT / "configs/elasticity/square-alpha2.yaml")
     caption = tables.caption_of(cfg.study, cfg)
     assert r"$u = \left(" in caption and r"\right)$" in caption
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("name", expressions.FUNCTIONS)
+def test_every_function_of_the_expression_language_typesets(name):
+    # a caption typesets whatever a config may write: a function missing here once crashed a study's rates.tex
+    arguments = ", ".join(["x", "y"][:expressions.ARITY.get(name, 1)])
+    tex = latex.expression(expressions.parse(f"{name}({arguments})", {"x", "y"}).tree)
+    assert tex.endswith(f"({arguments})") or tex in (r"\sqrt{x}", "|x|")
