@@ -4,8 +4,9 @@ import contextlib
 import dataclasses
 import hashlib
 import logging
-import re
 import os
+import re
+import textwrap
 from pathlib import Path
 
 import yaml
@@ -294,7 +295,8 @@ def _outputs(cfg, result, summary):
               f"(contact term: contact_quadrature {cfg.contact_quadrature})")
     shown = [verdict.format_summary(summary)] if summary is not None else []
     files = [str(path.relative_to(cfg.output_dir)) for path in written]
-    return "\n".join([header, tables.terminal(study, cfg)] + shown + ["wrote " + ", ".join(files)])
+    wrote = textwrap.fill("wrote " + ", ".join(files), tables.TERMINAL_WIDTH, subsequent_indent="  ")
+    return "\n".join([header, tables.terminal(study, cfg)] + shown + [wrote])
 
 
 def _warn_unused_options(unused, level):
