@@ -5,7 +5,6 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
 from mpi4py import MPI
 
 from .. import config, studies
@@ -37,7 +36,7 @@ def load(source, **overrides):
     for name, value in overrides.items():
         settings.set_path(raw, name.replace("__", "."), value)
     cfg = config.from_dict(raw, folder)
-    return dataclasses.replace(cfg, text=yaml.safe_dump(raw, sort_keys=False, allow_unicode=True))
+    return dataclasses.replace(cfg, text=config.yaml_dump(raw))
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):

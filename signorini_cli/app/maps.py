@@ -6,7 +6,6 @@ import shutil
 import sys
 from pathlib import Path
 
-import yaml
 from mpi4py import MPI
 
 from .. import config, studies
@@ -54,8 +53,8 @@ def run(cfg, points=None, force=False, resume_map=False, quiet=False, comm=MPI.C
             sig.note = (f" at map point {recorder.point.index if recorder.point else '-'}: finished points are "
                         f"in {map_config.folder_of(cfg)}; continue with --resume")
         raise
-    comm.barrier()
-    text = finish(cfg) if comm.rank == 0 else None
+    rows = comm.gather(recorder.rows, root=0)  # the rows of the points run here: none read back from disk
+    text = finish(cfg, known={k: row for part in rows for k, row in part.items()}) if comm.rank == 0 else None
     if text and not quiet:
         with guard.stdout_may_close():
             print(text)
@@ -91,18 +90,19 @@ def _start(cfg, count, ended):
     """The map's own config and status, written as it starts."""
     folder = Path(cfg.output_dir)
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / CONFIG_FILE).write_text(yaml.safe_dump(config.to_dict(cfg), sort_keys=False, allow_unicode=True))
+    (folder / CONFIG_FILE).write_text(config.yaml_dump(config.to_dict(cfg)))
     results.write_status(folder, f"running ({len(ended)} of {count} points done)")
 
 
 class Recorder:
     """on_level of a map: a point's folder prepared as the point starts and its results written once as it
     ends (its group's rank 0 writes; signals wait): a finished point is kept whole, one under way is
-    solved again by --resume. A line per finished point."""
+    solved again by --resume. A line per finished point; `rows`, map.csv's rows of the points this
+    group's rank 0 finished (the same as read back from their folders)."""
 
     def __init__(self, cfg, comm, quiet, chunked):
         self.cfg, self.comm, self.quiet, self.chunked = cfg, comm, quiet, chunked
-        self.point, self.lock = None, None
+        self.point, self.lock, self.rows = None, None, {}
 
     def __call__(self, point):
         if point is not self.point:
@@ -135,11 +135,13 @@ class Recorder:
         if self.lock is not None:
             self.lock.release()
             self.lock = None
-        if point.comm.rank == 0 and not self.quiet:
+        if point.comm.rank != 0:
+            return
+        row = rate_map.row(point.cfg, point.values, point.levels, point_status(point.cfg), self.cfg.map.varied)
+        self.rows[point.index] = row
+        if not self.quiet:
             with guard.stdout_may_close():
-                print(maps.point_line(point.index, len(self.cfg.map.studies),
-                                      rate_map.row(point.cfg, point.values, point.levels, point_status(point.cfg),
-                                                   self.cfg.map.varied)), flush=True)
+                print(maps.point_line(point.index, len(self.cfg.map.studies), row), flush=True)
 
     def interrupted(self):
         """The point under way says where it stopped (its group's rank 0 writes)."""
@@ -152,11 +154,14 @@ class Recorder:
                                                       "points done)")
 
 
-def collect(cfg):
-    """map.csv's rows, one per point, from the points' folders: a point not (yet) written, or written
-    for another config, has its values and status alone."""
+def collect(cfg, known=None):
+    """map.csv's rows, one per point: those `known` (point -> row), the others from the points' folders;
+    a point not (yet) written, or written for another config, has its values and status alone."""
     rows = []
     for k, point in enumerate(cfg.map.studies):
+        if known and k in known:
+            rows.append(known[k])
+            continue
         status = point_status(point)
         try:
             levels = resume.read_levels(point) if status else []
@@ -166,9 +171,10 @@ def collect(cfg):
     return rows
 
 
-def finish(cfg, draw=None):
-    """map.csv, figures and tables from the points' folders, the map's status; the terminal summary."""
-    rows = collect(cfg)
+def finish(cfg, draw=None, known=None):
+    """map.csv, figures and tables from the rows `known` and the other points' folders, the map's status;
+    the terminal summary."""
+    rows = collect(cfg, known)
     with guard.writing(cfg.output_dir):
         written = maps.write(cfg.output_dir, rows, cfg.map.varied, draw=cfg.output.plots if draw is None else draw)
         done = sum(row["status"].startswith(ENDED) for row in rows)

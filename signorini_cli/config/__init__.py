@@ -3,4 +3,4 @@ expression language (`expressions`), PETSc options (`petsc_options`), mesh files
 from .settings import (DEFAULT_DELTA, DOCS, LAWS, MAX_BYTES, MESH_KINDS,  # noqa: F401
                        Config, ConfigError, Continuation, Epsilon, Mesh, Output, PositivePart, Solver,
                        Verification, canonical, fingerprint, from_dict, key_paths, length, load, loads,
-                       table_columns, template, to_dict, yaml_load)
+                       table_columns, template, to_dict, yaml_dump, yaml_load)

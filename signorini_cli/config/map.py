@@ -6,8 +6,6 @@ import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
-
 from . import settings
 from .settings import ConfigError
 
@@ -109,7 +107,7 @@ def point_config(raw, k, point, folder, files, where):
     except ConfigError as err:
         key = next((key for key in point if err.path.startswith(key)), next(iter(point)))
         raise ConfigError(where.format(key=key), f"point {k} ({describe(point)}): {err}") from None
-    text = yaml.safe_dump(settings.to_dict(cfg), sort_keys=False, allow_unicode=True)
+    text = settings.yaml_dump(settings.to_dict(cfg))
     return dataclasses.replace(cfg, text=text)
 
 

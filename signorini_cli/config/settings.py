@@ -1251,6 +1251,13 @@ _Loader.add_implicit_resolver(
     re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"), list("-+0123456789."))
 
 
+def yaml_dump(data, allow_unicode=True):
+    """Plain data -> block-style YAML text, keys in order (libyaml's emitter where installed: the same text,
+    four times faster, which a map's points, each written as it is resolved, notice)."""
+    return yaml.dump(data, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper), sort_keys=False,
+                     allow_unicode=allow_unicode)
+
+
 def yaml_load(text):
     """YAML text -> Python data (safe: plain data only). Bad characters and excessive nesting are
     reported as YAML errors with a line and column, never as Python exceptions."""

@@ -1,5 +1,7 @@
 """Meshes of a refinement family, with Γ_C and Γ_D tagged, and their measured size h: the built-in grids
 (grids.py, built in place on every rank) and the gmsh/file kinds (geometries.py)."""
+import contextlib
+
 import numpy as np
 from mpi4py import MPI
 
@@ -14,9 +16,37 @@ FACES_2D = dict(FACES, bottom=(1, 0.0), top=(1, 1.0))
 FACES_3D = dict(FACES, bottom=(2, 0.0), top=(2, 1.0))
 
 
+_kept = None  # within kept(): (family, {n: Domain}) of the last family built
+
+
+@contextlib.contextmanager
+def kept():
+    """Within: the levels of one family (mesh config, Γ_C, communicator) are built once and shared, as
+    the points of a map solve on the same meshes; a level of another family lets the kept ones go."""
+    global _kept
+    _kept = (None, {})
+    try:
+        yield
+    finally:
+        _kept = None
+
+
 def build(mesh_cfg, contact, n, comm=MPI.COMM_WORLD):
     """The level with `n` cells per side, Γ_C = the face named `contact`; for gmsh/file kinds `n` is
     the level's entry of mesh.levels and Γ_C the physical group named `contact`."""
+    global _kept
+    if _kept is None:
+        return _build(mesh_cfg, contact, n, comm)
+    family = (mesh_cfg, contact, comm)
+    if _kept[0] != family:
+        _kept = (family, {})
+    levels = _kept[1]
+    if n not in levels:
+        levels[n] = _build(mesh_cfg, contact, n, comm)
+    return levels[n]
+
+
+def _build(mesh_cfg, contact, n, comm):
     if mesh_cfg.kind in ("gmsh", "file"):
         return geometries.build(mesh_cfg, contact, n, comm)
     dim = 2 if mesh_cfg.kind == "unit_square" else 3

@@ -12,7 +12,6 @@ import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
 from mpi4py import MPI
 
 from .. import __version__, config, studies
@@ -97,7 +96,7 @@ def record_attrs(cfg, levels, mpi_size, status):
     """What every study.h5 records: the config as given and resolved (--set overrides and defaults
     included), its hash for --resume, the study, MPI size, status, versions and git revision."""
     attrs = {"study": cfg.study, "study_type": cfg.study_type, "config": cfg.text,
-             "config_resolved": yaml.safe_dump(config.to_dict(cfg), sort_keys=False),
+             "config_resolved": config.yaml_dump(config.to_dict(cfg), allow_unicode=False),
              "config_hash": fingerprint(cfg),  # --resume continues only under the same hash
              "config_canonical": json.dumps(canonical(cfg), sort_keys=True, default=str),
              "contact_quadrature": str(cfg.contact_quadrature),  # the discrete problem's contact rule

@@ -297,34 +297,42 @@ class NewtonSolver:
             return False
         return self._test.step_small(self._direction, self.x.norm())
 
-    def exact_correction(self, options):
+    def exact_correction(self, options, own_ksp=False):
         """(delta, ||delta||, ||u||) for Newton's exact correction delta = J(u)^{-1} F(u) at the final iterate,
-        solved by a fresh KSP with `options` (the study's own linear solver, not the user's options): to first
-        order the algebraic error of u, whichever solver produced u. ||delta|| is inf (delta None) when that
-        linear solve fails."""
+        solved by a fresh KSP with `options` (the study's own linear solver, not the user's options), or with
+        `own_ksp` by SNES's KSP when that is the same direct solver (a new numeric factorisation of J(u)): to
+        first order the algebraic error of u, whichever solver produced u. ||delta|| is inf (delta None) when
+        that linear solve fails."""
         b, delta = self.b.duplicate(), self.x.duplicate()
         with self.phases("assemble_residual"):
             self.assemble_residual(self.x, b)  # leaves x in u, where the Jacobian is assembled
         with self.phases("assemble_jacobian"):
             self.assemble_jacobian(self.A)
-        ksp = PETSc.KSP().create(self.u.function_space.mesh.comm)
-        prefix = f"{self.prefix}exact_"
-        _set_options(prefix, options)
-        ksp.setOptionsPrefix(prefix)
-        ksp.setFromOptions()
+        ksp = self.snes.getKSP() if own_ksp else self._exact_ksp(options)
+        ksp.getPC().setReusePreconditioner(False)
         ksp.setOperators(self.A)
         delta.set(0.0)
         ksp.solve(b, delta)
         solved = ksp.getConvergedReason() > 0
-        for key in [key for key in PETSc.Options().getAll() if key.startswith(prefix)]:
-            PETSc.Options().delValue(key)
-        for obj in (ksp, b):
-            obj.destroy()
+        if not own_ksp:
+            for key in [key for key in PETSc.Options().getAll() if key.startswith(ksp.getOptionsPrefix())]:
+                PETSc.Options().delValue(key)
+            ksp.destroy()
+        b.destroy()
         norm = delta.norm() if solved else math.inf
         if not solved or not math.isfinite(norm):
             delta.destroy()
             return None, math.inf, self.x.norm()
         return delta, norm, self.x.norm()
+
+    def _exact_ksp(self, options):
+        """A fresh KSP with `options` on J, under its own prefix (deleted after the solve)."""
+        ksp = PETSc.KSP().create(self.u.function_space.mesh.comm)
+        prefix = f"{self.prefix}exact_"
+        _set_options(prefix, options)
+        ksp.setOptionsPrefix(prefix)
+        ksp.setFromOptions()
+        return ksp
 
     def take(self, delta):
         """u <- u - delta: a full Newton step from the final iterate (exact_correction)."""

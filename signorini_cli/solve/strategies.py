@@ -106,11 +106,13 @@ def checked(newton, problem, outcome):
     own = dataclasses.replace(newton.cfg, petsc_options=())
     options = solver.petsc_options(own, problem.dim, linear=newton.linear, dofs=newton.dofs)
     options = {key: value for key, value in options.items() if key.startswith(("ksp_", "pc_"))}
+    # without options of the user's, a direct SNES's own KSP is that solver: its symbolic factorisation serves
+    own_ksp = newton.linear == "direct" and not newton.cfg.petsc_options
     stol = newton.cfg.stol or EXACT_TOL
     previous = None
     with newton.snes.phases("newton"):
         for taken in range(EXACT_STEPS + 1):
-            delta, size, unorm = newton.snes.exact_correction(options)
+            delta, size, unorm = newton.snes.exact_correction(options, own_ksp)
             small = size <= EXACT_TOL * unorm
             floor = previous is not None and size <= stol * unorm and size >= EXACT_STALL * previous
             if small or floor or delta is None or taken == EXACT_STEPS:

@@ -1,6 +1,6 @@
 """The rate map (study_type: map): one refinement study per point of a grid of config values, run in one
-process (modules loaded once, each distinct form compiled once), the points shared out among groups of
-MPI ranks; and a point's row of map.csv."""
+process (modules loaded once, each distinct form compiled once, each mesh built and its data checked
+once), the points shared out among groups of MPI ranks; and a point's row of map.csv."""
 import logging
 from dataclasses import dataclass, field
 
@@ -8,6 +8,8 @@ from mpi4py import MPI
 
 from ..analysis import verdict
 from ..config import ConfigError
+from ..meshing import meshes
+from ..problems import registry
 from . import jit_cache
 from . import refinement
 
@@ -57,7 +59,7 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     group, color, count = groups(comm, cfg.map.ranks_per_point)
     skipped = set(done)
     todo = [k for k in range(len(cfg.map.studies)) if k not in skipped]
-    with jit_cache.kept():
+    with jit_cache.kept(), meshes.kept(), registry.checked_once():
         return [run_point(Point(k, cfg.map.values[k], cfg.map.studies[k], group), on_level, monitor)
                 for k in assigned(todo, color, count)]
 

@@ -202,3 +202,19 @@ def test_cell_diameters_are_dolfinx_mesh_h(kind, diagonal, comm):
     expected = dolfinx.cpp.mesh.h(msh._mesh, dim, owned)
     assert np.array_equal(meshes.cell_diameters(msh, chunk=7), expected)
     assert len(np.unique(np.concatenate(comm.allgather(expected)))) >= 10  # distorted: not the grid's one or two
+
+
+@pytest.mark.fast
+def test_kept_levels_are_built_once_per_family(make_config):
+    """Within meshes.kept() (a map) a family's levels are built once and shared; a level of another family
+    lets them go; outside, every build is a new mesh."""
+    cfg = make_config()
+    with meshes.kept():
+        first = meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF)
+        assert meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF) is first
+        assert meshes.build(cfg.mesh, cfg.contact, 8, MPI.COMM_SELF) is not first
+        other = meshes.build(cfg.mesh, "top", 4, MPI.COMM_SELF)
+        assert other is not first and other.facets().size == first.facets().size
+        assert meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF) is not first
+    assert meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF) is not meshes.build(cfg.mesh, cfg.contact, 4,
+                                                                                       MPI.COMM_SELF)

@@ -60,3 +60,28 @@ def test_cli_exit_2_one_line(tmp_path, capsys):
     assert cli.main(["run", str(path)]) == cli.EXIT_BAD_INPUT
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"signorini: error: {path}: problem.exact: sqrt(x-0.5)*y is nan at")
+
+
+@pytest.mark.fast
+def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
+    """Within registry.checked_once() (a map) the data are checked once on a mesh, again for other data,
+    another mesh, or another ε when the data use eps; a refusal is never remembered as a pass."""
+    from signorini_cli.problems import registry
+    calls = []
+    monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest: calls.append(domain) or
+                        posed.check(cfg, domain, *rest))
+    plain, with_eps = make_config(), make_config(problem={"exact": "sin(2*pi*x)*(1-y)**2 + eps*x*y"})
+    bad = make_config(problem={"exact": None, "f": "sqrt(0.5 - x)"})
+    domain, other = (meshes.build(plain.mesh, plain.contact, n, MPI.COMM_SELF) for n in (4, 8))
+
+    def check_on(cfg, on, eps_value=0.1):
+        registry.check_posed(cfg, on, compliance.exact_solution(cfg, on.mesh, fem.Constant(on.mesh, eps_value)),
+                             eps_value)
+    with registry.checked_once():
+        for cfg, on, eps_value in [(plain, domain, 0.1), (plain, domain, 0.2), (plain, other, 0.1),
+                                   (with_eps, domain, 0.1), (with_eps, domain, 0.1), (with_eps, domain, 0.2)]:
+            check_on(cfg, on, eps_value)
+        assert len(calls) == 4  # plain on each mesh (whatever ε), with_eps at each of its two ε
+        for _ in range(2):
+            with pytest.raises(ConfigError, match="is nan at"):
+                check_on(bad, domain)

@@ -6,6 +6,7 @@ from mpi4py import MPI
 
 from signorini_cli import studies
 from signorini_cli.solve import strategies
+from signorini_cli.studies import refinement as refinement_study
 
 # options whose iterates are no Newton steps; each made the success test pass far from the root (the
 # step of a stationary iteration is small, not its error): L2 off by up to 5.6 % (Jacobi at N = 64)
@@ -59,3 +60,40 @@ def test_default_solve_needs_no_exact_step(make_config):
     """The study's own solvers end at the root: the check costs one correction, takes no step."""
     levels = studies.run_study(make_config(mesh={"refinements": REFINEMENTS}), comm=MPI.COMM_SELF)
     assert all(lv.outcome.converged and lv.outcome.reason != strategies.CONVERGED_EXACT for lv in levels)
+
+
+def test_own_ksp_refactors_at_the_iterate(make_config, monkeypatch):
+    """Without options of the user's the check solves with SNES's own direct KSP, whose factorisation is
+    that of the last Newton step's Jacobian: at a moved iterate it must factor J(u) anew, and give the
+    correction a fresh KSP gives (two LU solves of one system: round-off, observed ~1e-15)."""
+    cfg = make_config(alpha=1.5, mesh={"refinements": [8]})
+    problem = solved_problem(cfg, monkeypatch)
+    with strategies.newton_for(cfg.solver, problem) as newton:
+        newton.run(cfg.epsilon(0.125))
+        problem.u_h.x.array[:] *= 1.5  # another iterate, another active set: a stale factorisation is wrong
+        options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+        found = []
+        for own in (True, False):
+            newton.snes.x.set(0.0)
+            problem.u_h.vector.copy(newton.snes.x)
+            delta, size, _ = newton.snes.exact_correction(options, own_ksp=own)
+            found.append((delta, size))
+        assert found[0][1] == pytest.approx(found[1][1], rel=1e-12)
+        difference = found[0][0].copy()
+        difference.axpy(-1.0, found[1][0])
+        assert difference.norm() <= 1e-12 * found[1][1]
+        for obj in (found[0][0], found[1][0], difference):
+            obj.destroy()
+
+
+def solved_problem(cfg, monkeypatch):
+    """The Problem of cfg's first level (caught on its way to strategies.solve)."""
+    seen, original = [], strategies.solve
+
+    def keep(solver_cfg, problem, *args, **kwargs):
+        seen.append(problem)
+        return original(solver_cfg, problem, *args, **kwargs)
+    monkeypatch.setattr(strategies, "solve", keep)
+    refinement_study.solve_level(cfg, 0, cfg.mesh.refinements[0], MPI.COMM_SELF)
+    monkeypatch.undo()
+    return seen[-1]
