@@ -8,7 +8,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from .. import config, studies
-from ..config import settings
+from ..config import loader, settings
 from ..record import results
 from . import guard
 
@@ -30,7 +30,7 @@ def load(source, **overrides):
     if isinstance(source, dict):
         raw, folder = copy.deepcopy(source), None
     else:
-        raw, folder = config.yaml_load(settings.read_bounded(source).decode("utf-8")), Path(source).resolve().parent
+        raw, folder = config.yaml_load(loader.read_bounded(source).decode("utf-8")), Path(source).resolve().parent
         if not isinstance(raw, dict):
             raise config.ConfigError("", "the config must be a YAML mapping of keys to values")
     for name, value in overrides.items():

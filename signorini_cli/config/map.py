@@ -103,7 +103,7 @@ def point_config(raw, k, point, folder, files, where):
         for key, value in point.items():
             settings.set_path(study, key, copy.deepcopy(value))
         study.update(study=str(k), output=dict(study.get("output") or {}, dir=str(folder)))
-        cfg = settings.from_dict(study, files)
+        cfg = settings.validate(study, files)
     except ConfigError as err:
         key = next((key for key in point if err.path.startswith(key)), next(iter(point)))
         raise ConfigError(where.format(key=key), f"point {k} ({describe(point)}): {err}") from None

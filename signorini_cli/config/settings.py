@@ -6,7 +6,6 @@ import json
 import math
 import os
 import re
-import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -342,58 +341,6 @@ def key_paths(cls=Config, prefix=""):
 MAX_BYTES = 1 << 20  # a config is a page of YAML: 1 MiB is far beyond any real one
 
 
-def load(path, overrides=(), options=()):
-    """Read a YAML config file (a regular file of at most MAX_BYTES), apply `KEY=VALUE` overrides and
-    the (name, value) PETSc `options` of the command line, validate. Relative mesh paths in the file
-    are relative to the file's folder."""
-    data = read_bounded(path)
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as err:
-        line = data.count(b"\n", 0, err.start) + 1
-        raise ConfigError("", f"not a UTF-8 text file (byte 0x{data[err.start]:02x} on line {line})") from None
-    return loads(text, overrides, folder=Path(path).resolve().parent, options=options)
-
-
-def read_bounded(path):
-    """The bytes of a regular file, refused at once when it is something else (a FIFO or a device
-    would block or never end, a folder has no text) or longer than MAX_BYTES."""
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO's open would wait for a writer
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise ConfigError("", "not a regular file (a config is read from a file, not a folder, "
-                                  "FIFO or device)")
-        if info.st_size > MAX_BYTES:
-            raise ConfigError("", f"{info.st_size} bytes, more than a config's limit of {MAX_BYTES}")
-        with os.fdopen(fd, "rb") as file:
-            fd = None
-            data = file.read(MAX_BYTES + 1)
-    finally:
-        if fd is not None:
-            os.close(fd)
-    if len(data) > MAX_BYTES:
-        raise ConfigError("", f"more than a config's limit of {MAX_BYTES} bytes")
-    return data
-
-
-def loads(text, overrides=(), folder=None, options=()):
-    """Validate YAML text (after overrides, then PETSc `options` joining solver.petsc_options, as
-    strings) into a Config; relative mesh paths resolve against `folder` (the config file's)."""
-    raw = yaml_load(text)
-    if not isinstance(raw, dict):
-        raise ConfigError("", "the config must be a YAML mapping of keys to values")
-    for item in overrides:
-        apply_override(raw, item)
-    for name, value in options:  # the command line wins over the file, however either spells the option
-        written = (raw.get("solver") or {}).get("petsc_options") if isinstance(raw.get("solver"), dict) else None
-        if isinstance(written, dict):
-            for key in [k for k in written if petsc.canonical(k) == petsc.canonical(name)]:
-                del written[key]
-        set_path(raw, f"solver.petsc_options.{name}", value)
-    return dataclasses.replace(from_dict(raw, folder), text=text)
-
-
 def apply_override(raw, item):
     """Set `a.b.c=value` in the raw mapping; the value is parsed as YAML, then validated as usual."""
     name, sep, value = item.partition("=")
@@ -453,9 +400,9 @@ class _Section:
         return self.raw.get(name, {})
 
 
-def from_dict(raw, folder=None):
-    """Validate a raw mapping into a Config; relative mesh paths are relative to `folder` (None: the
-    working directory), and stored resolved."""
+def validate(raw, folder=None):
+    """Validate a raw mapping into a Config, a map's block left to config.map (loader.from_dict reads it);
+    relative mesh paths are relative to `folder` (None: the working directory), and stored resolved."""
     _keys(raw, "", required=REQUIRED, optional=keys_of(Config))
     top = _Section(raw, "", Config)
     study = top.string("study")
@@ -980,9 +927,8 @@ def _study_type(cfg, raw, folder=None):
     kind = _Section(raw, "", Config).choice("study_type", STUDY_TYPES)
     if "map" in raw and kind != "map":
         raise ConfigError("map", "only meaningful with study_type map")
-    if kind == "map":
-        from . import map as rate_map  # the map section validates its points with this module's from_dict
-        return dataclasses.replace(cfg, study_type=kind, map=rate_map.parse(raw, cfg, folder))
+    if kind == "map":  # its block and points: config.map, which validates each point here
+        return dataclasses.replace(cfg, study_type=kind)
     if kind == "refinement":
         if "limit" in raw:
             raise ConfigError("limit", "only meaningful with study_type epsilon_sweep or total_error")
@@ -1196,7 +1142,7 @@ def _flow(value):
 # --- resolved settings ----------------------------------------------------------------------------
 
 def to_dict(cfg):
-    """The resolved config as plain YAML data, every default filled in; `from_dict` reads it back."""
+    """The resolved config as plain YAML data, every default filled in; `loader.from_dict` reads it back."""
     out = _plain(cfg)
     out.pop("text", None)
     out["mesh"] = _mesh_dict(cfg.mesh)
