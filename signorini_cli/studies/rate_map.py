@@ -1,9 +1,10 @@
 """The rate map (study_type: map): one refinement study per point of a grid of config values, run in one
 process (modules loaded once, each distinct form compiled once, each mesh built and its data checked
-once), the points shared out among groups of MPI ranks; and a point's row of map.csv."""
+once), the points taken in turn by groups of MPI ranks as they come free; and a point's row of map.csv."""
 import logging
 from dataclasses import dataclass, field
 
+import numpy as np
 from mpi4py import MPI
 
 from ..analysis import verdict
@@ -39,29 +40,63 @@ class Point:
 
 
 def groups(comm, ranks_per_point):
-    """(group communicator, its number, how many groups): comm split into blocks of consecutive ranks."""
+    """(group communicator, how many groups): comm split into blocks of consecutive ranks."""
     if comm.size % ranks_per_point:
         raise ConfigError("map.ranks_per_point", f"must divide the {comm.size} MPI ranks, got {ranks_per_point}")
-    color = comm.rank // ranks_per_point
-    return comm.Split(color, comm.rank), color, comm.size // ranks_per_point
+    return comm.Split(comm.rank // ranks_per_point, comm.rank), comm.size // ranks_per_point
 
 
-def assigned(indices, color, count):
-    """The points group `color` of `count` runs: every count-th from its own place. Fixed by the indices
-    alone, so a chunk of a map runs the same points on the same group every time."""
-    return list(indices)[color::count]
+class Dispenser:
+    """The points to run, taken one at a time by the groups as they come free: a counter on COMM_WORLD's
+    rank 0 that each group's rank 0 fetches and adds to (MPI one-sided, no reply from rank 0 awaited; with
+    Open MPI's osc pt2pt a take may wait for rank 0's next MPI call), so a group slowed by its points or its
+    node takes fewer. A point's numbers do not depend on its group: any group solves it the same way."""
+
+    def __init__(self, todo, comm, group, count):
+        self.todo, self.group = list(todo), group
+        self.next = 0  # one group: the points in order, no counter
+        self.window = MPI.Win.Allocate(8 if comm.rank == 0 else 0, 8, comm=comm) if count > 1 else None
+        if self.window is not None:
+            if comm.rank == 0:
+                self.window.Lock(0, MPI.LOCK_EXCLUSIVE)
+                self.window.Put(np.zeros(1, dtype=np.int64), 0)
+                self.window.Unlock(0)
+            comm.Barrier()
+
+    def __iter__(self):
+        while (k := self.take()) < len(self.todo):
+            yield self.todo[k]
+        self.free()
+
+    def take(self):
+        """The next place in todo: fetched by the group's rank 0, which tells the others."""
+        if self.window is None:
+            self.next += 1
+            return self.next - 1
+        got = np.zeros(1, dtype=np.int64)
+        if self.group.rank == 0:
+            self.window.Lock(0, MPI.LOCK_SHARED)
+            self.window.Fetch_and_op(np.ones(1, dtype=np.int64), got, 0, 0, MPI.SUM)
+            self.window.Unlock(0)
+        return self.group.bcast(int(got[0]), root=0)
+
+    def free(self):
+        """Collective: every group ends here once the points are all taken."""
+        if self.window is not None:
+            self.window.Free()
+            self.window = None
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     """Run the points of cfg.map not in `done` (finished, or outside the chunk asked for), each group of
-    map.ranks_per_point ranks its share in turn; on_level(point) as a point starts, after each of its
-    levels and as it ends (point.done). Returns the Points this group ran."""
-    group, color, count = groups(comm, cfg.map.ranks_per_point)
+    map.ranks_per_point ranks taking the next one as it comes free; on_level(point) as a point starts, after
+    each of its levels and as it ends (point.done). Returns the Points this group ran."""
+    group, count = groups(comm, cfg.map.ranks_per_point)
     skipped = set(done)
     todo = [k for k in range(len(cfg.map.studies)) if k not in skipped]
     with jit_cache.kept(), meshes.kept(), registry.checked_once():
         return [run_point(Point(k, cfg.map.values[k], cfg.map.studies[k], group), on_level, monitor)
-                for k in assigned(todo, color, count)]
+                for k in Dispenser(todo, comm, group, count)]
 
 
 def run_point(point, on_level=None, monitor=None):

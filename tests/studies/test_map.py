@@ -16,7 +16,7 @@ from mpi4py import MPI
 from signorini_cli import config, studies
 from signorini_cli.app import cli, maps
 from signorini_cli.record import resume
-from signorini_cli.studies import refinement as refinement_study
+from signorini_cli.studies import rate_map, refinement as refinement_study
 from conftest import BASE, merge
 
 SIGNORINI = str(Path(sys.executable).with_name("signorini"))
@@ -117,6 +117,31 @@ def test_points_are_their_single_studies(tmp_path_factory, grid, refinements):
         assert maps.run(alone, quiet=True, comm=MPI.COMM_SELF) == 0
         assert map_rows(folder / "self" / "m") == map_rows(folder / "world" / "m")
         assert len(map_rows(folder / "world" / "m")) == len(cfg.map.studies)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks_per_point", [1, 2])
+def test_every_point_taken_once(ranks_per_point):
+    """The groups take every point once, and a group's ranks agree on the points they take."""
+    comm = MPI.COMM_WORLD
+    group, count = rate_map.groups(comm, ranks_per_point)
+    taken = list(rate_map.Dispenser([3, 5, 6, 8, 9, 11, 12], comm, group, count))
+    assert group.allgather(taken) == [taken] * group.size
+    leaders = comm.allgather(taken if group.rank == 0 else [])
+    assert sorted(sum(leaders, [])) == [3, 5, 6, 8, 9, 11, 12]
+
+
+@pytest.mark.mpi
+def test_a_slow_group_takes_fewer_points():
+    """Rank 0 spends 0.5 s on each of its points, rank 1 none: rank 1 takes the points rank 0 is busy with."""
+    comm = MPI.COMM_WORLD
+    group, count = rate_map.groups(comm, 1)
+    taken = []
+    for k in rate_map.Dispenser(range(6), comm, group, count):
+        taken.append(k)
+        if comm.rank == 0:
+            time.sleep(0.5)
+    assert comm.allgather(len(taken)) == [1, 5]
 
 
 def test_failing_point_is_recorded_and_the_map_goes_on(tmp_path, capsys, monkeypatch):
