@@ -456,6 +456,16 @@ def timed(command, out):
     return time.perf_counter() - start, status
 
 
+def timed_together(commands, out):
+    """Run `commands` at once (two processes, no MPI between them): the wall time until the last ends."""
+    print("== together:", " | ".join(" ".join(map(str, c[-4:])) for c in commands), flush=True)
+    start = time.perf_counter()
+    running = [subprocess.Popen([str(c) for c in command], cwd=ROOT, env=dict(os.environ, **MPI_ENV))
+               for command in commands]
+    status = max(p.wait() for p in running)
+    return time.perf_counter() - start, status
+
+
 def solves_s(folder):
     """The levels' own wall time, summed over every point of a map folder (or over one study folder)."""
     paths = sorted(Path(folder).glob("points/*/rates.csv")) or [Path(folder) / "rates.csv"]
@@ -475,12 +485,14 @@ def map_runs(repeats=3):
     run_map = SIGNORINI + ["run", MAP_CONFIG, "--force", "--quiet", "--output"]
     commands = {"serial": lambda folder: run_map + [folder],
                 "one": lambda folder: run_map + [folder, "--points", "0"],
-                "ranks2": lambda folder: MPIRUN + ["2"] + run_map + [folder]}
+                "ranks2": lambda folder: MPIRUN + ["2"] + run_map + [folder],
+                "halves": lambda folder: [run_map + [folder, "--points", "0-14"],
+                                          run_map + [folder, "--points", "15-29"]]}
     runs = {name: [] for name in commands}
     for k in range(repeats):
         for name, command in commands.items():
             folder = out / f"{name}-{k}"
-            wall, status = timed(command(folder), out)
+            wall, status = (timed_together if name == "halves" else timed)(command(folder), out)
             runs[name].append((wall, status, solves_s(folder / "bench-map-30")))
     found = {}
     for name, done in runs.items():
@@ -504,6 +516,7 @@ def maps_section(machine):
     overhead = ((r["serial"][0] - r["serial_solves"]) - (r["one"][0] - r["one_solves"])) / (n - 1)
     ratio = r["serial"][0] / r["alone"][0]
     speedup = r["serial"][0] / r["ranks2"][0]
+    independent = r["serial"][0] / r["halves"][0]
     made = provenance.line("bench-maps", sorted((RUNS / "maps" / "serial-0" / "bench-map-30" / "points").iterdir()))
     rows = [("overhead per point beyond its levels' solves (s)", overhead, f"<= {MAP_TARGETS['overhead_s']}",
              overhead <= MAP_TARGETS["overhead_s"]),
@@ -521,13 +534,19 @@ def maps_section(machine):
               f"| map, its first point alone (`--points 0`) | {r['one'][0]:.1f} | {r['one_solves']:.1f} | "
               f"{r['one'][1]} |",
               f"| map, `mpirun -n 2` | {r['ranks2'][0]:.1f} | {r['ranks2_solves']:.1f} | {r['ranks2'][1]} |",
+              f"| map as two processes at once, no MPI (`--points 0-14`, `--points 15-29`) | "
+              f"{r['halves'][0]:.1f} | {r['halves_solves']:.1f} | {r['halves'][1]} |",
               f"| {n} separate `signorini run` | {r['alone'][0]:.1f} | {r['alone_solves']:.1f} | {r['alone'][1]} |",
               "",
-              f"The map runs are the median of {r['repeats']} runs each (in turn: serial, one point, 2 ranks); the "
+              f"The map runs are the median of {r['repeats']} runs each (in turn: serial, one point, 2 ranks, two processes); the "
               "separate processes run once. Overhead per point = ((map wall − its levels' time_s) − (one-point "
               f"map wall − its levels' time_s)) / {n - 1}: what a point costs beyond its solves once the process "
               "has started. The levels' own time is shorter in the map than in separate processes: FFCx's modules "
-              "are loaded once per map, the points share their meshes and the check of their data.", ""]
+              "are loaded once per map, the points share their meshes and the check of their data. The two "
+              "processes at once show what this machine gives two independent runs: serial wall / their wall = "
+              f"{independent:.3f}; the levels' solves slow down when both cores work "
+              f"({r['halves_solves'] / r['serial_solves']:.2f}× the serial map's, on 2 ranks "
+              f"{r['ranks2_solves'] / r['serial_solves']:.2f}×).", ""]
     return "\n".join(lines) + "\n"
 
 
