@@ -538,7 +538,8 @@ def maps_section(machine):
               f"{r['halves'][0]:.1f} | {r['halves_solves']:.1f} | {r['halves'][1]} |",
               f"| {n} separate `signorini run` | {r['alone'][0]:.1f} | {r['alone_solves']:.1f} | {r['alone'][1]} |",
               "",
-              f"The map runs are the median of {r['repeats']} runs each (in turn: serial, one point, 2 ranks, two processes); the "
+              f"The map runs are the median of {r['repeats']} runs each (in turn: serial, one point, 2 ranks, two "
+              "processes); the "
               "separate processes run once. Overhead per point = ((map wall − its levels' time_s) − (one-point "
               f"map wall − its levels' time_s)) / {n - 1}: what a point costs beyond its solves once the process "
               "has started. The levels' own time is shorter in the map than in separate processes: FFCx's modules "
