@@ -3,12 +3,12 @@
     python scripts/maps_page.py CONFIG.yaml ... [--output RESULTS] [--out docs/maps.md]
 reads each map's map.csv and the study.h5 of its points; every number on the page comes from them."""
 import argparse
-import csv
 import sys
 from pathlib import Path
 
 import provenance
 from signorini_cli import config
+from signorini_cli.record import csvfile
 from signorini_cli.report import maps, plots
 
 TOLERANCE = 0.1  # verification.tolerance's default: a fitted rate within 0.1 of the proven one holds it
@@ -49,8 +49,8 @@ def main(argv=None):
 
 
 def read_rows(cfg):
-    with open(cfg.output_dir / maps.MAP_FILE) as f:
-        return list(csv.DictReader(f))
+    """map.csv's rows, cells typed as written (csvfile)."""
+    return csvfile.read(cfg.output_dir / maps.MAP_FILE)
 
 
 def section(path, cfg, rows, figures, docs):
@@ -59,8 +59,8 @@ def section(path, cfg, rows, figures, docs):
     lines = [f"## {cfg.description}", "",
              f"`{path}`: {len(rows)} points ({' × '.join(f'{k} {len(v)}' for k, v in cfg.map.grid.items())}), "
              f"N = {', '.join(map(str, cfg.mesh.levels))}, d = {cfg.dimension}; "
-             f"{sum(float(r['time_s']) for r in rows):.0f} s of solves in all; "
-             f"{sum(r['converged'] == 'true' for r in rows)} of {len(rows)} points converged on every level.", ""]
+             f"{sum(r['time_s'] for r in rows):.0f} s of solves in all; "
+             f"{sum(r['converged'] is True for r in rows)} of {len(rows)} points converged on every level.", ""]
     for name, draw in figure_set(cfg, varied):
         target = figures / f"{cfg.study}-{name}.png"
         with plots.styled():
@@ -85,13 +85,14 @@ def figure_set(cfg, varied):
     return shown
 
 
-def _f(value):
-    return None if value in (None, "") else float(value)
-
-
 def _range(values):
     values = [v for v in values if v is not None]
     return f"{min(values):.2f}–{max(values):.2f}" if values else "-"
+
+
+def _values(rows, key):
+    """The rows' values of `key`, as numbers are written on the page."""
+    return ", ".join(f"{r[key]:g}" for r in rows)
 
 
 def _by(rows, key):
@@ -105,12 +106,12 @@ def theta_alpha(rows):
     """Map (a): per alpha, the theta at which the L2 rate holds 2 - TOLERANCE, and its range."""
     lines = []
     for alpha, group in _by(rows, "alpha").items():
-        rates = [(float(r["epsilon.theta"]), _f(r["rate_L2"])) for r in group]
+        rates = [(r["epsilon.theta"], r["rate_L2"]) for r in group]
         holding = [theta for theta, rate in rates if rate is not None and rate >= 2 - TOLERANCE]
         where = (f"at every theta from {min(holding):g} to {max(holding):g}" if len(holding) == len(rates)
                  else f"at theta = {', '.join(f'{t:g}' for t in holding) or 'none'} of {len(rates)}")
         verdicts = sorted({r["verdict_L2"] for r in group})
-        plain = [_f(r["rate_L2_plain"]) for r in group]
+        plain = [r["rate_L2_plain"] for r in group]
         fit = (f"fit of e/|ln h| {_range(r for _, r in rates)} (plain fit of e {_range(plain)})"
                if any(p != r for p, (_, r) in zip(plain, rates)) else f"fitted L2 rate {_range(r for _, r in rates)}")
         lines.append(f"alpha = {alpha}: {fit}; >= {2 - TOLERANCE:g} {where} (verdicts: {', '.join(verdicts)}).")
@@ -121,11 +122,11 @@ def power_p(rows):
     """Map (b): per alpha and p, the L2 and H1 rates; outside h <~ eps (p > 1) the verdicts say not covered."""
     lines = []
     for alpha, group in _by(rows, "alpha").items():
-        inside = [r for r in group if float(r["epsilon.exponent"]) <= 1]
-        outside = [r for r in group if float(r["epsilon.exponent"]) > 1]
-        lines.append(f"alpha = {alpha}: p <= 1: L2 {_range(_f(r['rate_L2']) for r in inside)}, H1 "
-                     f"{_range(_f(r['rate_H1']) for r in inside)}; p > 1 (outside h <~ eps): L2 "
-                     f"{_range(_f(r['rate_L2']) for r in outside)}, H1 {_range(_f(r['rate_H1']) for r in outside)}.")
+        inside = [r for r in group if r["epsilon.exponent"] <= 1]
+        outside = [r for r in group if r["epsilon.exponent"] > 1]
+        lines.append(f"alpha = {alpha}: p <= 1: L2 {_range(r['rate_L2'] for r in inside)}, H1 "
+                     f"{_range(r['rate_H1'] for r in inside)}; p > 1 (outside h <~ eps): L2 "
+                     f"{_range(r['rate_L2'] for r in outside)}, H1 {_range(r['rate_H1'] for r in outside)}.")
     return lines
 
 
@@ -133,9 +134,9 @@ def cube(rows):
     """Map (c): the 3-D L2 rate against 8/5 and 2, per exponent."""
     lines = []
     for p, group in _by(rows, "epsilon.exponent").items():
-        proven = sorted({r["proven_L2"] or "none" for r in group})
-        lines.append(f"p = {p}: fitted L2 rate {_range(_f(r['rate_L2']) for r in group)} over theta = "
-                     f"{', '.join(r['epsilon.theta'] for r in group)} (proven: {', '.join(proven)}; verdicts: "
+        proven = sorted({f"{r['proven_L2']:g}" if r["proven_L2"] is not None else "none" for r in group})
+        lines.append(f"p = {p}: fitted L2 rate {_range(r['rate_L2'] for r in group)} over theta = "
+                     f"{_values(group, 'epsilon.theta')} (proven: {', '.join(proven)}; verdicts: "
                      f"{', '.join(sorted({r['verdict_L2'] for r in group}))}).")
     return lines
 
@@ -144,17 +145,17 @@ def log_alpha(rows):
     """Map (d): the plain fit of e and the fit of e/|ln h|, side by side, per alpha."""
     lines = []
     for alpha, group in _by(rows, "alpha").items():
-        lines.append(f"alpha = {alpha}: L2 fit of e/|ln h| {_range(_f(r['rate_L2']) for r in group)}, plain fit "
-                     f"of e {_range(_f(r['rate_L2_plain']) for r in group)} (theta = "
-                     f"{', '.join(r['epsilon.theta'] for r in group)}; verdicts: "
+        lines.append(f"alpha = {alpha}: L2 fit of e/|ln h| {_range(r['rate_L2'] for r in group)}, plain fit "
+                     f"of e {_range(r['rate_L2_plain'] for r in group)} (theta = "
+                     f"{_values(group, 'epsilon.theta')}; verdicts: "
                      f"{', '.join(sorted({r['verdict_L2'] for r in group}))}).")
     return lines
 
 
 def generic(rows):
     """Any other map: the range of the fitted L2 and H1 rates."""
-    return [f"fitted L2 rate {_range(_f(r.get('rate_L2')) for r in rows)}, H1 "
-            f"{_range(_f(r.get('rate_H1')) for r in rows)} over its {len(rows)} points."]
+    return [f"fitted L2 rate {_range(r.get('rate_L2') for r in rows)}, H1 "
+            f"{_range(r.get('rate_H1') for r in rows)} over its {len(rows)} points."]
 
 
 FINDINGS = {"map-square-theta-alpha": theta_alpha, "map-square-power-p": power_p,

@@ -1,4 +1,4 @@
-"""Shared fixtures: a config factory for small studies."""
+"""Shared fixtures: a config factory for small studies; the solved Problem of a level."""
 import copy
 import os
 import subprocess
@@ -7,7 +7,11 @@ from contextlib import contextmanager
 import pytest
 import yaml
 
+from mpi4py import MPI
+
 from signorini_cli import config
+from signorini_cli.solve import strategies
+from signorini_cli.studies import refinement as refinement_study
 
 BASE = {
     "study": "t",
@@ -83,3 +87,16 @@ def mounted(folder, options):
         yield folder
     finally:
         subprocess.run(["umount", str(folder)], check=True)
+
+
+def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
+    """The Problem of cfg's first level, solved (caught on its way to strategies.solve)."""
+    seen, original = [], strategies.solve
+
+    def spy(solver_cfg, problem, previous=None, monitor=None, phases=None):
+        seen.append(problem)
+        return original(solver_cfg, problem, previous, monitor, phases)
+
+    monkeypatch.setattr(strategies, "solve", spy)
+    refinement_study.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
+    return seen[-1]

@@ -6,7 +6,7 @@ from mpi4py import MPI
 
 from signorini_cli import studies
 from signorini_cli.solve import strategies
-from signorini_cli.studies import refinement as refinement_study
+from conftest import solved_problem
 
 # options whose iterates are no Newton steps; each made the success test pass far from the root (the
 # step of a stationary iteration is small, not its error): L2 off by up to 5.6 % (Jacobi at N = 64)
@@ -85,15 +85,3 @@ def test_own_ksp_refactors_at_the_iterate(make_config, monkeypatch):
         for obj in (found[0][0], found[1][0], difference):
             obj.destroy()
 
-
-def solved_problem(cfg, monkeypatch):
-    """The Problem of cfg's first level (caught on its way to strategies.solve)."""
-    seen, original = [], strategies.solve
-
-    def keep(solver_cfg, problem, *args, **kwargs):
-        seen.append(problem)
-        return original(solver_cfg, problem, *args, **kwargs)
-    monkeypatch.setattr(strategies, "solve", keep)
-    refinement_study.solve_level(cfg, 0, cfg.mesh.refinements[0], MPI.COMM_SELF)
-    monkeypatch.undo()
-    return seen[-1]

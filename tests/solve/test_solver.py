@@ -14,11 +14,10 @@ from mpi4py import MPI
 from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 from signorini_cli import studies
-from signorini_cli.studies import refinement as refinement_study
 from signorini_cli.app import cli
 from signorini_cli.config import ConfigError
-from signorini_cli.solve import solver, strategies
-from conftest import BASE, merge
+from signorini_cli.solve import solver
+from conftest import BASE, merge, solved_problem
 
 NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature point with x < 0.5
 INF_DATA = {"exact": None, "f": "exp(1000*x)"}  # overflows to Inf for x > 0.71
@@ -277,19 +276,6 @@ def test_condition_estimate_matches_dense_eigenvalues(make_config, monkeypatch):
     # N=8 (49 free dofs): CG to 1e-14 runs the full Lanczos process; observed agreement 1e-12
     assert lam_min == pytest.approx(eigenvalues[0], rel=1e-8)
     assert lam_max == pytest.approx(eigenvalues[-1], rel=1e-8)
-
-
-def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
-    """The Problem of cfg's first level, solved (caught on its way to strategies.solve)."""
-    seen, original = [], strategies.solve
-
-    def spy(solver_cfg, problem, previous=None, monitor=None, phases=None):
-        seen.append(problem)
-        return original(solver_cfg, problem, previous, monitor, phases)
-
-    monkeypatch.setattr(strategies, "solve", spy)
-    refinement_study.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
-    return seen[-1]
 
 
 # --- one matrix: the stiffness assembled into J once, the rows the Γ_C terms touch reset each step; the
