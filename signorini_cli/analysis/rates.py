@@ -157,8 +157,8 @@ class Proven:
 
 # What the paper proves (its Lemma 3.1, Corollary 3.2, Lemmas 4.2, 4.4, 4.5), one record per (row, norm),
 # plus the Γ_C and energy-type terms the same results bound. Norm names are the rate columns:
-# H1 = |u - u_h|_H1, L2 = ||u - u_h||_L2, pos_gc = ||[u]_+ - [u_h]_+||_{L^{alpha+1}(Γ_C)}, pos_gc_scaled = pos_gc^{(alpha+1)/2},
-# energy_err = (H1^2 + pos_gc^{alpha+1}/eps)^{1/2}.
+# H1 = |u - u_h|_H1, L2 = ||u - u_h||_L2, pos_gc = ||[u]_+ - [u_h]_+||_{L^{alpha+1}(Γ_C)},
+# pos_gc_scaled = pos_gc^{(alpha+1)/2}, energy_err = (H1^2 + pos_gc^{alpha+1}/eps)^{1/2}.
 PAPER_RATES = (
     Proven((2, 3), "any alpha", "h/eps bounded (eps >~ h)", "H1", "1", False, "Cor. 3.2 i",
            "u in W^{2,alpha+1}"),

@@ -317,8 +317,8 @@ def _rate(value):
 
 
 SUMMARY_COLUMNS = ("kind", "name", "observed_rate", "rate_lo", "rate_hi", "plain_rate", "proven_rate",
-                   "log_factor", "verdict", "reason", "paper", "conditions", "levels", "value", "order", "extrapolated", "gci", "band",
-                   "oscillatory", "expected_rate", "tolerance", "met")
+                   "log_factor", "verdict", "reason", "paper", "conditions", "levels", "value", "order",
+                   "extrapolated", "gci", "band", "oscillatory", "expected_rate", "tolerance", "met")
 
 
 def summary_rows(summary):

@@ -158,8 +158,9 @@ def _first_line(err):
 
 def status(cfg, result, final=True):
     """'complete' ('complete: k of n levels converged' when some did not); 'failed at level k: REASON'
-    when a level did not converge and on_failure is stop; else 'running (k of n levels done)' (for the ε → 0 studies: solves, not levels), also with every
-    level done while tables and figures are still being written (final=False)."""
+    when a level did not converge and on_failure is stop; else 'running (k of n levels done)' (for the ε → 0
+    studies: solves, not levels), also with every level done while tables and figures are still being
+    written (final=False)."""
     solves = list(result)
     unit = studies.of(cfg.study_type).UNIT
     last = solves[-1] if solves else None

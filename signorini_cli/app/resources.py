@@ -60,8 +60,8 @@ def check_memory(cfg, comm):
         meshes = " and ".join(label for label, _, _ in peak)
         raise ConfigError(f"mesh.{cfg.mesh.level_key}",
                           f"{what} ({meshes}: {dofs:,} dofs, {nonzeros:,} Jacobian nonzeros) needs about "
-                          f"{_gb(need)} of memory, more than the {_gb(have)} available; use --ignore-memory-check to run it "
-                          "anyway")
+                          f"{_gb(need)} of memory, more than the {_gb(have)} available; use --ignore-memory-check "
+                          "to run it anyway")
 
 
 def peak_meshes(cfg, comm):
@@ -89,7 +89,8 @@ def p1_peak_meshes(cfg, comm):
     source, r = max(sources, key=lambda level: base[level[0]] * grow ** level[1])
     dofs = base[source]
     rows = ROW_NONZEROS[cfg.mesh.dimension]
-    return [(source_label(source, k), dofs * grow**k, rows * dofs * grow**k) for k in [r] + ([r + extra] if extra else [])]
+    return [(source_label(source, k), dofs * grow**k, rows * dofs * grow**k)
+            for k in [r] + ([r + extra] if extra else [])]
 
 
 def reference_refinements(cfg):

@@ -169,7 +169,8 @@ class _Grammar:
             raise ExpressionError(f"unknown function {_clip(node.func.id)!r} (allowed: {', '.join(FUNCTIONS)})")
         arity = ARITY.get(node.func.id, 1)
         if node.keywords or len(node.args) != arity:
-            raise ExpressionError(f"{node.func.id}() takes exactly {'one argument' if arity == 1 else f'{arity} arguments'}")
+            takes = "one argument" if arity == 1 else f"{arity} arguments"
+            raise ExpressionError(f"{node.func.id}() takes exactly {takes}")
         values = [self.check(arg, depth + 1) for arg in node.args]
         if any(v is None for v in values):
             return None

@@ -56,7 +56,8 @@ def parse(raw, base, folder):
 
 def _grid(raw, path):
     if not isinstance(raw, dict):
-        raise ConfigError(path, f"must be a mapping of dotted config keys to lists of values, got {settings._show(raw)}")
+        raise ConfigError(path, "must be a mapping of dotted config keys to lists of values, got "
+                                f"{settings._show(raw)}")
     grid = {}
     for key, values in _dotted(raw):
         _check_key(key, f"{path}.{key}")

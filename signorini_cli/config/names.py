@@ -22,8 +22,8 @@ NORMS = {
     "pos_gc_scaled": Name("[·]+ scaled", r"$[\cdot]_+^{(\alpha+1)/2}$",
                           r"$\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{(\alpha+1)/2}$"),
     "energy_err": Name("energy", "energy",
-                       r"$(|u-u_h|_{H^1}^2+\varepsilon^{-1}\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{\alpha+1})^{1/2}$"
-                       " (Lemma 3.1)"),
+                       r"$(|u-u_h|_{H^1}^2"
+                       r"+\varepsilon^{-1}\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{\alpha+1})^{1/2}$ (Lemma 3.1)"),
 }
 # the columns before the errors
 COLUMNS = {

@@ -119,7 +119,8 @@ class Mesh:
     sizes: tuple = key((), "target cell size per level, decreasing", example=(0.2, 0.1), only="only with kind: gmsh")
     path: tuple = key((), ".msh files, one per level (the base mesh with refine: uniform)",
                       example=("mesh.msh",), only="only with kind: file")
-    refine: str = key("none", "none | uniform: levels refine one base mesh (nested)", only="only with kind: gmsh or file")
+    refine: str = key("none", "none | uniform: levels refine one base mesh (nested)",
+                      only="only with kind: gmsh or file")
     cache: str = key("", "where gmsh meshes are kept (empty: meshes/cache for a shipped geometry, "
                          f"{geometry_files.USER_CACHE}/ beside a .geo file)", only="only with kind: gmsh")
     groups: tuple = key((), internal=True)        # gmsh/file: (name, dimension) of the source's physical groups
@@ -186,7 +187,8 @@ class Solver:
     linear: str = key("auto", "auto | direct | iterative")
     line_search: str = key("bt", "bt | basic | l2 | cp (method: newtonls)")
     on_failure: str = key("continue", "continue | stop, after a level that did not converge")
-    petsc_options: tuple = key((), example={}, doc="extra PETSc options (no leading -) under the study's prefix")  # (name, value)
+    # (name, value) pairs
+    petsc_options: tuple = key((), example={}, doc="extra PETSc options (no leading -) under the study's prefix")
     strategy: str = key("auto", "plain | nested | continuation | auto")
     method: str = key("newtonls", "newtonls (line search) | newtontr (trust region)")
     stol: float = key(1e-7, "success: Newton correction <= stol * ||u_h||; 0: off")
@@ -223,7 +225,8 @@ class Expect:
 
 @dataclass(frozen=True)
 class Limit:
-    """The ε → 0 studies (docs/limit.md): the α values, the ε of a sweep, the ε = θ h^p of a total-error study."""
+    """The ε → 0 studies (docs/limit.md): the α values, the ε of a sweep, the ε = θ h^p of a total-error
+    study."""
     alpha: tuple = key((2.0,), "the α values")
     epsilon: tuple = key((), "epsilon_sweep: decreasing ε values, or {start, stop, count}",
                          example=(1.0, 0.1, 0.01), only="only with study_type: epsilon_sweep")
@@ -286,7 +289,8 @@ class Config:
     map: object = key(None, "a rate map: dotted keys -> values, one refinement study per combination",
                       example={"grid": {"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]}, "jobs": 1,
                                "ranks_per_point": 1}, only="only with study_type: map")
-    limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)", only="only with study_type: epsilon_sweep or total_error")
+    limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)",
+                       only="only with study_type: epsilon_sweep or total_error")
     material: Material = key(None, "elasticity: {E, nu}", only="only with problem.pde: elasticity")
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
 
@@ -514,7 +518,8 @@ def _geometry_mesh(raw, path, folder):
     else:
         refinements = ()
     return Mesh(kind, refinements, geometry=geometry, sizes=entries if kind == "gmsh" else (),
-                path=entries if kind == "file" else (), refine=refine, cache=_resolve(s.string("cache", empty=True), folder) if raw.get("cache") else "",
+                path=entries if kind == "file" else (), refine=refine,
+                cache=_resolve(s.string("cache", empty=True), folder) if raw.get("cache") else "",
                 groups=_groups(sources, s.at(source)), source_hash=geometry_files.source_hash(sources))
 
 

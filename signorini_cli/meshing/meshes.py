@@ -8,7 +8,8 @@ from mpi4py import MPI
 import dolfinx.mesh
 
 from . import geometries, grids
-from .domain import CONTACT, DIRICHLET, Domain, cell_diameters, cell_sizes, domain_of, facet_vertices, tag_facets  # noqa: F401 (the stage's names)
+from .domain import (CONTACT, DIRICHLET, Domain, cell_diameters, cell_sizes,  # noqa: F401 (the stage's names)
+                     domain_of, facet_vertices, tag_facets)
 
 # face name -> (axis, coordinate) on the unit square / cube
 FACES = {"left": (0, 0.0), "right": (0, 1.0), "front": (1, 0.0), "back": (1, 1.0)}

@@ -5,7 +5,8 @@
 σ(u) = 2μ ε(u) + λ (div u) I (plane strain in 2-D); `eps` is always the compliance parameter ε, `strain`
 the symmetric gradient. With the manufactured data the two Γ_C conditions add up to the traction σ(u)n:
 
-    ∫ σ(u_h):ε(v) + (1/ε)∫_Γc [w_h]_+^α (v·n) = ∫ f·v + ∫_Γc σ(u_ex)n·v + (1/ε)∫_Γc [w_ex]_+^α (v·n),
+    ∫ σ(u_h):ε(v) + (1/ε)∫_Γc [w_h]_+^α (v·n)
+        = ∫ f·v + ∫_Γc σ(u_ex)n·v + (1/ε)∫_Γc [w_ex]_+^α (v·n),
 
 w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine), so contact.ContactTerm integrates the
 penalty exactly, and the kinked data [w_ex]_+^α by its adaptive rules when n is one vector on all of Γ_C."""

@@ -6,7 +6,7 @@ import time
 import numpy as np
 
 from ..config import MESH_KINDS
-from .tables import norms
+from .tables import TERMINAL_WIDTH, norms
 
 NEWTON_AFTER_S = 3.0  # a level running longer than this shows its Newton iterations as they come
 ETA_LEVELS = 3        # cost ~ dofs^p is fitted over the last 3 levels
@@ -32,8 +32,7 @@ class Progress:
         self.level, self.started = len(rows), self.clock()
         if self.show:
             eta = remaining_time(rows, *levels_left(self.mesh, rows, self.dim))
-            left = f"  ~{format_duration(eta)} left" if eta else ""
-            self._print(level_line(rows[-1]) + left)
+            self._print(with_time_left(level_line(rows[-1]), eta))
 
     def monitor(self, snes, its, fnorm):
         """SNES monitor: once the level has run NEWTON_AFTER_S, one line per Newton iteration."""
@@ -48,7 +47,7 @@ class Progress:
         print(line, file=self.stream, flush=True)
 
 
-SHOWN_NORMS = 2  # L2 and H1 (or their _ref twins): a line stays within 120 columns
+SHOWN_NORMS = 2  # L2 and H1 (or their _ref twins): a line stays within TERMINAL_WIDTH columns
 
 
 def level_line(row):
@@ -64,6 +63,15 @@ def level_line(row):
             parts.append(f"{norm} {row[norm]:.3e}" + (f" (rate {rate:.2f})" if rate is not None else ""))
     parts.append(format_duration(row["time_s"]))
     return "  ".join(parts)
+
+
+def with_time_left(line, eta):
+    """The level's line and the time left (if estimated): on the line while it stays within TERMINAL_WIDTH,
+    else on a line of its own below."""
+    if not eta:
+        return line
+    left = f"~{format_duration(eta)} left"
+    return f"{line}  {left}" if len(line) + 2 + len(left) <= TERMINAL_WIDTH else f"{line}\n  {left}"
 
 
 def levels_left(mesh, rows, dim):

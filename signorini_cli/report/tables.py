@@ -380,7 +380,8 @@ def _latex_text(value):
 
 def _failures(rows, end="."):
     """One line per row that did not converge: its level (a sweep's: its N, α and ε)."""
-    return [f"{_which(row)} did not converge: {row.get('reason')}{end}" for row in rows if row.get("converged") is False]
+    return [f"{_which(row)} did not converge: {row.get('reason')}{end}"
+            for row in rows if row.get("converged") is False]
 
 
 def _which(row):
@@ -450,8 +451,8 @@ def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""
 def terminal(study, cfg=None):
     """What a run or `report` prints of a study: its rate tables as format_table, its other tables whole."""
     shown, _ = studies.of(study.study_type).reported(cfg, study.tables or {"rates": study.rows})
-    texts = [(f"{t.name}:\n" if t is not shown[0] else "") + (format_table(t.rows, cfg) if t.paper else format_rows(t.rows))
-             for t in shown if t.terminal]
+    texts = [(f"{t.name}:\n" if t is not shown[0] else "")
+             + (format_table(t.rows, cfg) if t.paper else format_rows(t.rows)) for t in shown if t.terminal]
     return "\n\n".join(texts)
 
 

@@ -140,7 +140,8 @@ def _contact_variable(u_h, forms, level):
     if forms.gap is None:
         return u_h, forms.u_exact, level.errors["H1"]
     msh = u_h.function_space.mesh
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": measure.error_degree(u_h.function_space, level.h)})
+    degree = measure.error_degree(u_h.function_space, level.h)
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
     a_ee = measure.integrate(forms.gap.energy(forms.u_exact - u_h), dx)
     return forms.gap.w_h, forms.gap.w_exact, abs(a_ee) ** 0.5
 

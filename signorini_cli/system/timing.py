@@ -9,8 +9,9 @@ from petsc4py import PETSc
 
 # a level's phases, in table order; `linear` and `pc_setup` come from PETSc's event log, the rest
 # are wall clocks (transfer: the initial guess, nested iteration's move of the previous level's u_h;
-# newton: the SNES solves; contact: the Γ_C terms integrated beside UFL, a part of the two assemblies). PETSc logs KSPSolve without the PCSetUp it triggers first (the LU factorisation or
-# the AMG set-up), so linear = KSPSolve + PCSetUp, and pc_setup is that part of it.
+# newton: the SNES solves; contact: the Γ_C terms integrated beside UFL, a part of the two assemblies).
+# PETSc logs KSPSolve without the PCSetUp it triggers first (the LU factorisation or the AMG set-up), so
+# linear = KSPSolve + PCSetUp, and pc_setup is that part of it.
 PHASES = ("mesh", "forms", "transfer", "assemble_residual", "assemble_jacobian", "contact", "linear", "pc_setup",
           "newton", "errors", "output")
 PETSC_EVENTS = {"linear": ("KSPSolve", "PCSetUp"), "pc_setup": ("PCSetUp",)}

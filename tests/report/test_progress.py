@@ -107,6 +107,16 @@ def test_newton_lines_only_after_threshold():
     assert out.getvalue().splitlines()[-1].startswith("level 0  N=8") and "left" not in out.getvalue()
 
 
+def test_time_left_wraps_at_120_columns():
+    """N = 1024 with a time left in hours: the estimate goes below the level's line, each within 120 columns."""
+    line = progress.level_line(dict(row(4, 1024, 245.0), newton_its=12, H1=3.5e-3, rate_H1=1.0))
+    shown = progress.with_time_left(line, 7380.0).splitlines()
+    assert shown == [line, "  ~2 h 03 min left"] and all(len(text) <= 120 for text in shown)
+    short = progress.level_line(row(1, 16, 0.25))
+    assert progress.with_time_left(short, 2.5) == short + "  ~2.50 s left"
+    assert progress.with_time_left(short, None) == short
+
+
 def test_hidden_progress_prints_nothing():
     out = io.StringIO()
     shown = progress.Progress(Config, show=False, stream=out, newton_after=0.0)
