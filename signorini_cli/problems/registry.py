@@ -53,4 +53,5 @@ def _data(problem, eps_value):
     """What the check of a problem's data depends on: their texts, and ε where they use it."""
     texts = [e.text if e is not None else None for e in (problem.exact, problem.f, problem.g)]
     uses_eps = any(e is not None and "eps" in e.names for e in (problem.exact, problem.f, problem.g))
-    return repr((texts, problem.define, problem.exact_solves, eps_value if uses_eps else None))
+    defined = tuple((name, e.text) for name, e in problem.define)
+    return repr((texts, defined, problem.exact_solves, eps_value if uses_eps else None))

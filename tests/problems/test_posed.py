@@ -71,6 +71,7 @@ def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
     monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest: calls.append(domain) or
                         posed.check(cfg, domain, *rest))
     plain, with_eps = make_config(), make_config(problem={"exact": "sin(2*pi*x)*(1-y)**2 + eps*x*y"})
+    defined = [make_config(problem={"define": {"s": "sin(2*pi*x)"}, "exact": "s*(1-y)**2"}) for _ in range(2)]
     bad = make_config(problem={"exact": None, "f": "sqrt(0.5 - x)"})
     domain, other = (meshes.build(plain.mesh, plain.contact, n, MPI.COMM_SELF) for n in (4, 8))
 
@@ -82,6 +83,9 @@ def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
                                    (with_eps, domain, 0.1), (with_eps, domain, 0.1), (with_eps, domain, 0.2)]:
             check_on(cfg, on, eps_value)
         assert len(calls) == 4  # plain on each mesh (whatever ε), with_eps at each of its two ε
+        for cfg in defined:  # the same definitions, parsed twice (as two points of a map are)
+            check_on(cfg, domain)
+        assert len(calls) == 5
         for _ in range(2):
             with pytest.raises(ConfigError, match="is nan at"):
                 check_on(bad, domain)
