@@ -314,6 +314,8 @@ class NewtonSolver:
         delta.set(0.0)
         ksp.solve(b, delta)
         solved = ksp.getConvergedReason() > 0
+        if own_ksp and not solved:
+            ksp.reset()  # a failed factorisation leaves MUMPS unusable for SNES's next solve
         if not own_ksp:
             for key in [key for key in PETSc.Options().getAll() if key.startswith(ksp.getOptionsPrefix())]:
                 PETSc.Options().delValue(key)

@@ -3,6 +3,7 @@ PETSc options choose, a level is converged only at an iterate whose exact Newton
 1e-13 ||u_h||, so every converged level's error agrees with a default solve's to 1e-6."""
 import pytest
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from signorini_cli import studies
 from signorini_cli.solve import strategies
@@ -85,3 +86,28 @@ def test_own_ksp_refactors_at_the_iterate(make_config, monkeypatch):
         for obj in (found[0][0], found[1][0], difference):
             obj.destroy()
 
+
+
+def test_failed_check_leaves_snes_usable(make_config, monkeypatch):
+    """A check whose factorisation on SNES's own KSP fails (a singular J: zero pivots) says so, and the next
+    solve on the same SNES (as ε-continuation would make) still converges."""
+    cfg = make_config(mesh={"refinements": [8]})
+    problem = solved_problem(cfg, monkeypatch)
+    options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}
+    with strategies.newton_for(cfg.solver, problem) as newton:
+        assert newton.run(cfg.epsilon(0.125)).converged
+        assemble = newton.snes.assemble_jacobian
+
+        def singular(J, whole=False):
+            assemble(J, whole)
+            J.zeroEntries()
+            J.assemble()
+        saved = newton.snes.A.copy()  # the stiffness lives in J between steps (the split): put it back after
+        monkeypatch.setattr(newton.snes, "assemble_jacobian", singular)
+        delta, size, _ = newton.snes.exact_correction(options, own_ksp=True)
+        assert delta is None and size == float("inf")
+        monkeypatch.setattr(newton.snes, "assemble_jacobian", assemble)
+        saved.copy(newton.snes.A, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+        saved.destroy()
+        problem.u_h.x.array[:] = 0.0
+        assert newton.run(cfg.epsilon(0.125)).converged
