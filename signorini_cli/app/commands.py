@@ -6,7 +6,6 @@ import hashlib
 import logging
 import os
 import re
-import textwrap
 from pathlib import Path
 
 import yaml
@@ -116,7 +115,7 @@ def report_study(args):
         return fail(args.path, err)
     if MPI.COMM_WORLD.rank == 0:
         emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
-              f"wrote into {folder}: " + ", ".join(str(p.relative_to(folder)) for p in written)])
+              tables.wrote((p.relative_to(folder) for p in written), folder)])
     return EXIT_OK
 
 
@@ -181,7 +180,7 @@ def compare(args):
     except (ConfigError, OSError) as err:
         return fail("compare", err)
     if MPI.COMM_WORLD.rank == 0:
-        emit([tables.summary_table(rows), f"wrote into {folder}: " + ", ".join(p.name for p in written)])
+        emit([tables.summary_table(rows), tables.wrote((p.name for p in written), folder)])
     return EXIT_OK
 
 
@@ -295,8 +294,7 @@ def _outputs(cfg, result, summary):
               f"(contact term: contact_quadrature {cfg.contact_quadrature})")
     shown = [verdict.format_summary(summary)] if summary is not None else []
     files = [str(path.relative_to(cfg.output_dir)) for path in written]
-    wrote = textwrap.fill("wrote " + ", ".join(files), tables.TERMINAL_WIDTH, subsequent_indent="  ")
-    return "\n".join([header, tables.terminal(study, cfg)] + shown + [wrote])
+    return "\n".join([header, tables.terminal(study, cfg)] + shown + [tables.wrote(files)])
 
 
 def _warn_unused_options(unused, level):

@@ -12,7 +12,7 @@ from .. import config, studies
 from ..config import ConfigError
 from ..config import map as map_config
 from ..record import resume, results
-from ..report import maps
+from ..report import maps, tables
 from ..studies import rate_map
 from . import guard
 
@@ -181,7 +181,7 @@ def finish(cfg, draw=None, known=None):
         results.write_status(cfg.output_dir, "complete" if done == len(rows) else
                              f"partial ({done} of {len(rows)} points done)")
     return "\n".join([maps.summary(rows, cfg.map.varied, title=f"map {cfg.study}: {cfg.output_dir}"),
-                      "wrote " + ", ".join(path.name for path in written)])
+                      tables.wrote(path.name for path in written)])
 
 
 def is_map(path):

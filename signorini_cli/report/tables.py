@@ -1,6 +1,7 @@
 """Human-readable output: the terminal table, Markdown/LaTeX tables and the figures of a study of any type
 (what its type says it reports)."""
 import math
+import textwrap
 from pathlib import Path
 
 from .. import config, studies
@@ -454,6 +455,13 @@ def terminal(study, cfg=None):
     texts = [(f"{t.name}:\n" if t is not shown[0] else "")
              + (format_table(t.rows, cfg) if t.paper else format_rows(t.rows)) for t in shown if t.terminal]
     return "\n\n".join(texts)
+
+
+def wrote(names, folder=None):
+    """A command's closing line, 'wrote [into FOLDER:] a, b, ...', wrapped to TERMINAL_WIDTH between names."""
+    head = f"wrote into {folder}: " if folder is not None else "wrote "
+    return textwrap.fill(head + ", ".join(map(str, names)), TERMINAL_WIDTH, subsequent_indent="  ",
+                         break_long_words=False, break_on_hyphens=False)
 
 
 def proven_rates(cfg):

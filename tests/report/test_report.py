@@ -247,3 +247,14 @@ def test_wide_rows_wrapped_at_120_columns_nothing_lost():
     text = "\n".join(lines)
     assert all(f"column_{k}" in text for k in range(20)) and text.count("\n\n") >= 1
     assert all(block.splitlines()[0].split()[0] == "N" for block in text.split("\n\n"))
+
+
+def test_wrote_line_wraps_between_names():
+    """A map's closing line (15 figures and tables) wraps at 120 columns between whole file names."""
+    names = ["map.csv", "map.tex", "map.md"] + [f"{kind}_{norm}_alpha_epsilon-theta.{ext}" for kind in ("heat", "rate")
+                                                  for norm in ("L2", "H1") for ext in ("png", "pdf")]
+    lines = tables.wrote(names).splitlines()
+    assert len(lines) > 1 and all(len(line) <= 120 for line in lines)
+    assert lines[0].startswith("wrote map.csv, ") and all(line.startswith("  ") for line in lines[1:])
+    assert "".join(lines).replace("  ", " ").removeprefix("wrote ").split(", ") == names
+    assert tables.wrote(["rates.md"], "/tmp/x") == "wrote into /tmp/x: rates.md"
