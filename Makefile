@@ -112,7 +112,7 @@ limit: docs/limit.md
 	$(call missed,$(LIMIT_STAMPS))
 $(MADE)/limit/%.status: % $(PACKAGE) | $(STAMP)
 	$(call run,$<)
-docs/limit.md: $(LIMIT_STAMPS) scripts/limit_page.py scripts/provenance.py
+docs/limit.md: $(LIMIT_STAMPS) scripts/limit_page.py scripts/cells.py scripts/provenance.py
 	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out $@
 
 # P2 against P1 (docs/elements.md): run configs/elements/, then write the page from the runs.
@@ -123,7 +123,7 @@ elements: docs/elements.md
 	$(call missed,$(ELEMENT_STAMPS))
 $(MADE)/elements/%.status: % $(PACKAGE) | $(STAMP)
 	$(call run,$<)
-docs/elements.md: $(ELEMENT_STAMPS) scripts/elements_page.py scripts/provenance.py
+docs/elements.md: $(ELEMENT_STAMPS) scripts/elements_page.py scripts/cells.py scripts/provenance.py
 	$(PY) scripts/elements_page.py $(ELEMENT_CONFIGS) --out $@
 
 .PHONY: stiff

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import cells
 import provenance
 from signorini_cli import config
 from signorini_cli.analysis import rates
@@ -61,8 +62,8 @@ def study_section(label, path, cfg, rows):
         "",
         markdown(rows, COLUMNS),
         "",
-        f"Fitted over the last {FIT_LEVELS} levels: " + ", ".join(f"{n} {rate(fits[n])}" for n in NORMS)
-        + f"; all levels converged: {yes(all(r['converged'] for r in rows))}.",
+        f"Fitted over the last {FIT_LEVELS} levels: " + ", ".join(f"{n} {cells.rate(fits[n])}" for n in NORMS)
+        + f"; all levels converged: {cells.yes(all(r['converged'] for r in rows))}.",
     ])
 
 
@@ -74,11 +75,11 @@ def comparison(p1, p2):
     last1, last2 = rows1[-1], rows2[-1]
     lines = ["## What the rates show", ""]
     for label, fits, k in (("P1", fit1, 1), ("P2", fit2, 2)):
-        lines.append(f"- {label}: L2 {rate(fits['L2'])} and H1 {rate(fits['H1'])} against the interpolation "
-                     f"orders {k + 1} and {k} of degree {k}: the penalty term (weight 1/ε = 1/h) "
+        lines.append(f"- {label}: L2 {cells.rate(fits['L2'])} and H1 {cells.rate(fits['H1'])} against the "
+                     f"interpolation orders {k + 1} and {k} of degree {k}: the penalty term (weight 1/ε = 1/h) "
                      + ("keeps" if keeps(fits, k) else "does not keep") + " the best order the element allows"
                      + (f" ({keeps_detail(fits, k)})." if not keeps(fits, k) else "."))
-    lines.append(f"- Γ_C: pos_gc {rate(fit1['pos_gc'])} (P1) and {rate(fit2['pos_gc'])} (P2).")
+    lines.append(f"- Γ_C: pos_gc {cells.rate(fit1['pos_gc'])} (P1) and {cells.rate(fit2['pos_gc'])} (P2).")
     lines.append(f"- At N = {last2['N']}: P2 L2 {last2['L2']:.3e} and H1 {last2['H1']:.3e} with {last2['dofs']:,} "
                  f"dofs against P1 L2 {last1['L2']:.3e} and H1 {last1['H1']:.3e} with {last1['dofs']:,} dofs.")
     for r2 in rows2:
@@ -132,9 +133,9 @@ def signorini_section(p1, p2, compliance1, compliance2):
         "",
         markdown(rows2, columns),
         "",
-        f"Fitted over the last {FIT_LEVELS} levels: P1 L2 {rate(fit1['L2'])}, H1 {rate(fit1['H1'])}; P2 L2 "
-        f"{rate(fit2['L2'])}, H1 {rate(fit2['H1'])}, against the heuristic 1/α = {1 / cfg.alpha:.2f} of the "
-        f"model error. At N = {last2['N']} P2's L2 error is {percent(last2['L2'], last1['L2'])} of P1's and its H1 "
+        f"Fitted over the last {FIT_LEVELS} levels: P1 L2 {cells.rate(fit1['L2'])}, H1 {cells.rate(fit1['H1'])}; P2 L2 "
+        f"{cells.rate(fit2['L2'])}, H1 {cells.rate(fit2['H1'])}, against the heuristic 1/α = {1 / cfg.alpha:.2f} "
+        f"of the model error. At N = {last2['N']} P2's L2 error is {percent(last2['L2'], last1['L2'])} of P1's and its H1 "
         f"error {percent(last2['H1'], last1['H1'])}, where with the manufactured compliance solution above it is "
         f"{percent(p2_last['L2'], p1_last['L2'])} and {percent(p2_last['H1'], p1_last['H1'])}: "
         + ("with ε = h the model error, which no element reduces, sets the error of both elements."
@@ -175,14 +176,6 @@ def cell(column, value):
     if isinstance(value, float):
         return f"{value:.3e}"
     return str(value)
-
-
-def rate(value):
-    return "–" if value is None else f"{value:.2f}"
-
-
-def yes(flag):
-    return "yes" if flag else "no"
 
 
 if __name__ == "__main__":

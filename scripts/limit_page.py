@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 
+import cells
 import provenance
 from signorini_cli import config
 from signorini_cli.analysis import rates
@@ -71,8 +72,8 @@ def signorini_section(path, cfg):
         "",
         markdown(rows, columns),
         "",
-        f"Finest level N = {last['N']}: H1 rate {fmt_rate(last['rate_H1'])}, L2 rate {fmt_rate(last['rate_L2'])}, "
-        f"all levels converged: {yes(all(r['converged'] for r in rows))}.",
+        f"Finest level N = {last['N']}: H1 rate {cells.rate(last['rate_H1'])}, L2 rate {cells.rate(last['rate_L2'])}, "
+        f"all levels converged: {cells.yes(all(r['converged'] for r in rows))}.",
     ])
 
 
@@ -94,7 +95,7 @@ def sweep_section(path, cfg, folder):
         "",
         f"![model error against ε, N = {finest}]({PLOT})",
         "",
-        f"Decreasing at every step for every α, mesh and measure: {yes(monotone(sweep))}. "
+        f"Decreasing at every step for every α, mesh and measure: {cells.yes(monotone(sweep))}. "
         f"Fitted rates in ε (least squares over the {cfg.limit.fit_last} smallest ε), beside 1/α:",
         "",
         markdown(fitted, ("N", "alpha", "eps_max", "eps_min", "fit_L2", "fit_H1", "fit_L2_gamma_c",
@@ -117,7 +118,7 @@ def alpha_finding(fitted, tolerance=0.05):
     """How the fitted H1 rate depends on α on the finest mesh, against 1/α."""
     finest = max(r["N"] for r in fitted)
     rows = [r for r in fitted if r["N"] == finest]
-    pairs = ", ".join(f"α = {r['alpha']:g}: {fmt_rate(r['fit_H1'])} (1/α = {1 / r['alpha']:.2f})" for r in rows)
+    pairs = ", ".join(f"α = {r['alpha']:g}: {cells.rate(r['fit_H1'])} (1/α = {1 / r['alpha']:.2f})" for r in rows)
     gap = max(abs(r["fit_H1"] - 1 / r["alpha"]) for r in rows if r["fit_H1"] is not None)
     verdict = (f"within {tolerance} of 1/α for every α" if gap <= tolerance
                else f"up to {gap:.2f} away from 1/α")
@@ -214,7 +215,7 @@ def _cell(column, value):
     if value is None:
         return "–"
     if isinstance(value, bool):
-        return yes(value)
+        return cells.yes(value)
     if column.startswith(("rate_", "fit_", "expected_")) or column == "1/alpha":
         return f"{value:.2f}"
     if column in ("alpha", "p"):
@@ -222,14 +223,6 @@ def _cell(column, value):
     if isinstance(value, float):
         return f"{value:.3e}"
     return str(value)
-
-
-def fmt_rate(value):
-    return "–" if value is None else f"{value:.2f}"
-
-
-def yes(flag):
-    return "yes" if flag else "no"
 
 
 if __name__ == "__main__":

@@ -95,6 +95,11 @@ def _values(rows, key):
     return ", ".join(f"{r[key]:g}" for r in rows)
 
 
+def _verdicts(rows, norm="L2"):
+    """The rows' verdicts of `norm`, each once, in order."""
+    return ", ".join(sorted({r[f"verdict_{norm}"] for r in rows}))
+
+
 def _by(rows, key):
     groups = {}
     for row in rows:
@@ -110,11 +115,10 @@ def theta_alpha(rows):
         holding = [theta for theta, rate in rates if rate is not None and rate >= 2 - TOLERANCE]
         where = (f"at every theta from {min(holding):g} to {max(holding):g}" if len(holding) == len(rates)
                  else f"at theta = {', '.join(f'{t:g}' for t in holding) or 'none'} of {len(rates)}")
-        verdicts = sorted({r["verdict_L2"] for r in group})
         plain = [r["rate_L2_plain"] for r in group]
         fit = (f"fit of e/|ln h| {_range(r for _, r in rates)} (plain fit of e {_range(plain)})"
                if any(p != r for p, (_, r) in zip(plain, rates)) else f"fitted L2 rate {_range(r for _, r in rates)}")
-        lines.append(f"alpha = {alpha}: {fit}; >= {2 - TOLERANCE:g} {where} (verdicts: {', '.join(verdicts)}).")
+        lines.append(f"alpha = {alpha}: {fit}; >= {2 - TOLERANCE:g} {where} (verdicts: {_verdicts(group)}).")
     return lines
 
 
@@ -137,7 +141,7 @@ def cube(rows):
         proven = sorted({f"{r['proven_L2']:g}" if r["proven_L2"] is not None else "none" for r in group})
         lines.append(f"p = {p}: fitted L2 rate {_range(r['rate_L2'] for r in group)} over theta = "
                      f"{_values(group, 'epsilon.theta')} (proven: {', '.join(proven)}; verdicts: "
-                     f"{', '.join(sorted({r['verdict_L2'] for r in group}))}).")
+                     f"{_verdicts(group)}).")
     return lines
 
 
@@ -148,7 +152,7 @@ def log_alpha(rows):
         lines.append(f"alpha = {alpha}: L2 fit of e/|ln h| {_range(r['rate_L2'] for r in group)}, plain fit "
                      f"of e {_range(r['rate_L2_plain'] for r in group)} (theta = "
                      f"{_values(group, 'epsilon.theta')}; verdicts: "
-                     f"{', '.join(sorted({r['verdict_L2'] for r in group}))}).")
+                     f"{_verdicts(group)}).")
     return lines
 
 
