@@ -18,7 +18,7 @@ from dolfinx import fem
 from signorini_cli import config
 from signorini_cli.app import cli
 from signorini_cli.meshing import meshes
-from signorini_cli.problems import elasticity
+from signorini_cli.problems import elasticity, registry
 from signorini_cli.solve import strategies
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -104,7 +104,7 @@ def hertz_level(cfg, size, eps_value):
     domain = meshes.build(cfg.mesh, cfg.contact, size, comm)
     V = elasticity.space(cfg, domain.mesh)
     u_h, eps = fem.Function(V), fem.Constant(domain.mesh, eps_value)
-    forms = elasticity.forms(cfg, domain, u_h, eps)
+    forms = registry.problem_of(cfg).forms(cfg, domain, u_h, eps)
     bcs = [elasticity.dirichlet_condition(V, domain, None)]
     problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem)

@@ -183,12 +183,14 @@ PAPER_RATES = (
 
 @dataclass(frozen=True)
 class Expected:
-    """The proven rate for one study and norm (None: not covered, `reason` says why)."""
+    """The proven rate for one study and norm (None: not covered, `reason` says why); `unchecked`: a
+    hypothesis of the proof the study cannot check (a rate below the proven one is then inconclusive)."""
     rate: float
     log_factor: bool = False
     reference: str = ""
     conditions: str = ""
     reason: str = ""
+    unchecked: str = ""
 
 
 def base_norm(norm):

@@ -69,9 +69,10 @@ class Summary:
         return all(e.met for e in self.expectations)
 
 
-def summarize(cfg, levels):
-    """The verdict of a (possibly partial) study; the same on every rank (built from reduced values)."""
-    norms = tuple(norm_verdict(cfg, levels, norm) for norm in rate_columns(levels))
+def summarize(cfg, levels, proven=None):
+    """The verdict of a (possibly partial) study against `proven(cfg, norm)` (an Expected: the rate records
+    of the study's method; the paper's, `expected`, by default); the same on every rank (reduced values)."""
+    norms = tuple(norm_verdict(cfg, levels, norm, proven or expected) for norm in rate_columns(levels))
     quantities = tuple(q for q in (quantity_estimate(cfg, levels, name) for name in GCI_QUANTITIES
                                    if cfg.problem.exact is None) if q is not None)
     fitted = {v.norm: v.observed for v in norms}
@@ -106,11 +107,12 @@ def errors_of(levels, norm):
     return [lv.errors.get(norm) for lv in levels]
 
 
-def norm_verdict(cfg, levels, norm):
-    """Fit the last k levels of `norm` and compare its interval with the paper's rate for this study."""
+def norm_verdict(cfg, levels, norm, proven_of=None):
+    """Fit the last k levels of `norm` and compare its interval with the proven rate for this study
+    (proven_of(cfg, norm); the paper's by default)."""
     h, ok = [lv.h for lv in levels], [lv.outcome.converged for lv in levels]
     e, k = errors_of(levels, norm), cfg.verification.fit_levels
-    proven = expected(cfg, norm)
+    proven = (proven_of or expected)(cfg, norm)
     plain = rates.fit(h, e, ok, k)
     found = rates.fit(h, e, ok, k, log_factor=True) if proven.log_factor else plain
     used = tuple(levels[i].n for i in found.levels) if found else ()
@@ -120,6 +122,8 @@ def norm_verdict(cfg, levels, norm):
         verdict, reason = shallower(cfg, levels, norm, proven, found, verdict, reason)
     if verdict in (AGREES, EXCEEDS, BELOW):
         reason += caveat(cfg, levels, found)
+    if verdict == BELOW and proven.unchecked:  # the hypothesis may fail: below says nothing of the bound
+        verdict, reason = INCONCLUSIVE, f"{reason}; unchecked hypothesis: {proven.unchecked}"
     return NormVerdict(norm, found and found.slope, plain and plain.slope, proven.rate, proven.log_factor,
                        verdict, proven.reference, proven.conditions or proven.reason, used,
                        found and found.lo, found and found.hi, reason)

@@ -1,6 +1,4 @@
-"""The compliance model in UFL: weak form (paper eq. (10)), positive part, manufactured data."""
-from dataclasses import dataclass
-
+"""The scalar problem −Δu = f in UFL: its space, operator, data (manufactured or given), Γ_C side and errors."""
 import numpy as np
 
 import ufl
@@ -8,32 +6,9 @@ from dolfinx import fem
 
 from ..config import expressions
 from ..meshing.meshes import CONTACT, DIRICHLET
-from . import contact, element, measure
-
-QUADRATURE_DEGREE = 6  # data terms (sin, exp ...) against the test functions, in Ω
-
-
-@dataclass(frozen=True)
-class Split:
-    """F = F_fixed + F_varying and J = J_fixed + J_varying, where F_fixed (the load) and J_fixed (the
-    stiffness) do not depend on u_h: Newton assembles them once per solve, then only the cheap rest."""
-    F_fixed: ufl.Form
-    J_fixed: ufl.Form
-    F_varying: ufl.Form
-    J_varying: ufl.Form  # None when no UFL term depends on u_h besides the stiffness
-
-
-@dataclass(frozen=True)
-class Forms:
-    """Residual and Jacobian of one level, with the exact solution (if any) as UFL."""
-    F: ufl.Form
-    J: ufl.Form
-    u_exact: object  # UFL expression, or None for data-only scenes
-    ds_c: ufl.Measure
-    split: Split = None
-    contact: object = None  # contact.ContactTerm: Γ_C terms integrated beside UFL (contact_quadrature exact, vertex)
-    near_nullspace: object = None  # PETSc.NullSpace the AMG preconditioner coarsens against (elasticity: rigid motions)
-    gap: object = None  # (w_h, w_ex): the Γ_C quantity the contact measures read, when it is not u_h itself
+from . import contact, element, forms, measure
+from .forms import QUADRATURE_DEGREE
+from .penalty import compliance
 
 
 def space(cfg, msh):
@@ -46,32 +21,11 @@ def errors(u_h, u_exact, h):
     return measure.errors(u_h, u_exact, h)
 
 
-def positive_part(u, positive, h, eps):
-    """[u]_+ exactly, or smoothed as (u + sqrt(u^2 + delta^2))/2 with delta = delta(h, eps)."""
-    if positive.kind == "exact":
-        return ufl.conditional(ufl.gt(u, 0), u, 0)
-    delta = positive.delta({"h": h, "eps": eps}, expressions.ufl_functions())
-    return (u + ufl.sqrt(u**2 + delta**2)) / 2
-
-
-def compliance(u, alpha, positive, h, eps):
-    """The boundary law q_alpha(u) = [u]_+^alpha (paper eq. (4))."""
-    return positive_part(u, positive, h, eps) ** alpha
-
-
 def exact_solution(cfg, msh, eps):
     """u_ex as UFL in the mesh's spatial coordinates, or None."""
     if cfg.problem.exact is None:
         return None
-    return on_mesh(cfg.problem.exact(_variables(msh, eps), expressions.ufl_functions()), msh)
-
-
-def on_mesh(value, msh):
-    """value as a UFL expression on msh: a constant ("5", "0*x", or f = -Δu of one) has no domain in
-    UFL, which then can neither differentiate it nor build a form from it: make it a dolfinx Constant."""
-    if ufl.domain.extract_domains(ufl.as_ufl(value)):
-        return value
-    return fem.Constant(msh, float(value))
+    return forms.on_mesh(cfg.problem.exact(_variables(msh, eps), expressions.ufl_functions()), msh)
 
 
 def data(cfg, msh, eps, u_exact, n):
@@ -88,46 +42,74 @@ def data(cfg, msh, eps, u_exact, n):
     return f, g
 
 
-def forms(cfg, domain, u_h, eps):
-    """F(u_h; v) = ∫ ∇u_h·∇v + (1/eps) ∫_Γc [u_h]_+^alpha v − ∫ f v − (1/eps) ∫_Γc g v; J = dF/du.
-    With contact_quadrature exact or vertex the kinked Γ_C terms, (1/eps)∫[u_h]_+^alpha v (exact positive
-    part) and (1/eps)∫[u_ex]_+^alpha v of g, live in Forms.contact, outside the UFL forms."""
+def boundary(cfg, domain, u_h, eps):
+    """The scalar problem's side of Γ_C (forms.Boundary): w = u, v_n = v, the flux ∂_n u, with
+    a(u, v) = ∫ ∇u·∇v and the load ∫ f v."""
     msh = domain.mesh
-    V = u_h.function_space
-    v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
+    v = ufl.TestFunction(u_h.function_space)
     rule = cfg.contact_quadrature
     degree = rule if isinstance(rule, int) else QUADRATURE_DEGREE
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags,
                        metadata={"quadrature_degree": degree})(CONTACT)
     u_exact = exact_solution(cfg, msh, eps)
-    f, g = data(cfg, msh, eps, u_exact, ufl.FacetNormal(msh))
-    term = None if isinstance(rule, int) else contact_term(cfg, domain, u_h, eps, u_exact)
-    if term is not None and term.u_exact is not None:  # its kinked part [u_ex]_+^alpha is the term's
-        g = eps * ufl.dot(ufl.grad(u_exact), ufl.FacetNormal(msh))
-    f, h = on_mesh(f, msh), fem.Constant(msh, domain.h)
-    q = compliance(u_h, cfg.alpha, cfg.positive_part, h, eps)
-    q = q if term is None or not term.penalty else 0
+    n = ufl.FacetNormal(msh)
+    f, g = data(cfg, msh, eps, None, n) if u_exact is None else (-ufl.div(ufl.grad(u_exact)), 0)
+    traction = None if u_exact is None else ufl.dot(ufl.grad(u_exact), n) * v * ds_c
+
+    def term(penalty, kinked):
+        """The Γ_C terms beside UFL by contact_quadrature exact or vertex (None under a Gauss rule)."""
+        if isinstance(rule, int) or not (penalty or kinked):
+            return None
+        return contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, rule, penalty,
+                                   numpy_exact(cfg, msh.geometry.dim) if kinked else None)
+
     # on affine cells ∇u_h·∇v is a polynomial of degree 2(k−1): UFL's own estimate integrates it exactly
     stiffness = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * ufl.dx(domain=msh)
-    load = f * v * dx
-    boundary = (q - g) / eps * v * ds_c if not (_is_zero(q) and _is_zero(g)) else None
-    varying = stiffness if boundary is None else stiffness + boundary
-    F = varying - load
-    J_varying = None if _is_zero(q) else ufl.derivative(boundary, u_h, du)
-    split = Split(F_fixed=-load, J_fixed=ufl.derivative(stiffness, u_h, du), F_varying=varying, J_varying=J_varying)
-    return Forms(F, ufl.derivative(F, u_h, du), u_exact, ds_c, split, term)
+    return forms.Boundary(u_h, u_h, u_exact, v, lambda u: ufl.dot(ufl.grad(u), n), traction, g, ds_c,
+                          fem.Constant(msh, domain.h), term, stiffness, forms.on_mesh(f, msh) * v * dx, u_exact,
+                          Trace(cfg, domain, u_h, u_exact), domain)
 
 
-def contact_term(cfg, domain, u_h, eps, u_exact):
-    """The Γ_C terms integrated beside UFL by cfg.contact_quadrature (exact or vertex): the penalty for
-    the exact positive part, and the kinked data [u_ex]_+^alpha of a manufactured compliance solution."""
-    penalty = cfg.positive_part.kind == "exact"
-    kinked = u_exact is not None and cfg.problem.exact_solves != "signorini"
-    if not (penalty or kinked):
-        return None
-    return contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, cfg.contact_quadrature,
-                               penalty, numpy_exact(cfg, domain.mesh.geometry.dim) if kinked else None)
+class Trace:
+    """The scalar solution on Γ_C, what the measures read: w_h = u_h and w_ex = u_ex, the error seminorm,
+    the penetration, the contact set and ∫[u_h]_+^beta (exact for P1), and the potential."""
+
+    def __init__(self, cfg, domain, u_h, u_exact):
+        self.cfg, self.domain, self.w_h, self.w_exact = cfg, domain, u_h, u_exact
+        self._facets = None
+
+    def facets(self):
+        """(dofs, points) of the owned Γ_C facets (measure.contact_facet_dofs)."""
+        if self._facets is None:
+            self._facets = measure.contact_facet_dofs(self.w_h.function_space, self.domain.facet_tags, CONTACT)
+        return self._facets
+
+    def seminorm(self, level):
+        """|u_ex − u_h|_H1, the level's own H1 error (Lemma 3.1's left side)."""
+        return level.errors["H1"]
+
+    def penetration(self):
+        return measure.penetration(self.w_h, self.facets()[0])
+
+    def contact_measure(self):
+        return measure.contact_measure(self.w_h, *self.facets())
+
+    def positive_power(self, beta):
+        """∫_Γc [u_h]_+^beta: in closed form for P1 (the rule of the solve's own penalty term), else by the
+        Γ_C error quadrature of the element."""
+        if self.cfg.element.degree == 1:
+            return contact.positive_power(self.w_h, *self.facets(), beta)
+        ds_c = self.domain.ds_c(measure.contact_error_degree(self.w_h.function_space))
+        return measure.integrate(measure.positive(self.w_h) ** beta, ds_c)
+
+    def energy(self, eps, contact_energy):
+        """The potential ½∫|∇u_h|² − ∫ f u_h + (contact_energy − ∫_Γc g u_h)/ε (measure.energy)."""
+        msh = self.domain.mesh
+        f, g = data(self.cfg, msh, eps, self.w_exact, ufl.FacetNormal(msh))
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
+        ds_c = self.domain.ds_c(QUADRATURE_DEGREE)  # g u_h: smooth data times u_h
+        return measure.energy(self.w_h, forms.on_mesh(f, msh), g, eps, dx, ds_c, contact_energy)
 
 
 def numpy_exact(cfg, dim):
@@ -136,10 +118,6 @@ def numpy_exact(cfg, dim):
         variables = dict(zip(("x", "y", "z")[:dim], np.moveaxis(points, -1, 0)[:dim]), eps=eps_value)
         return cfg.problem.exact(variables, expressions.numpy_functions())
     return evaluate
-
-
-def _is_zero(value):
-    return isinstance(value, (int, float)) and value == 0
 
 
 def _variables(msh, eps):

@@ -1,4 +1,5 @@
-"""Linear elasticity with normal compliance on Γ_C: the vector analogue of the scalar model (docs/elasticity.md).
+"""Linear elasticity, a problem of its own (space, operator, data, Γ_C side w = u·n − g0, errors); with the penalty
+method it is the vector analogue of the scalar compliance model (docs/elasticity.md).
 
     −div σ(u) = f in Ω,   u = u_D on Γ_D,   ε σ_n(u) + [u·n − g0]_+^α = ĝ_n,  σ_t(u) = ĝ_t on Γ_C,
 
@@ -11,7 +12,6 @@ the symmetric gradient. With the manufactured data the two Γ_C conditions add u
 w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine), so contact.ContactTerm integrates the
 penalty exactly, and the kinked data [w_ex]_+^α by its adaptive rules when n is one vector on all of Γ_C."""
 from contextlib import ExitStack
-from dataclasses import dataclass
 
 import numpy as np
 import ufl
@@ -22,8 +22,8 @@ from dolfinx import cpp, fem, la
 
 from ..config import expressions
 from ..meshing.meshes import CONTACT
-from . import compliance, contact, element, measure
-from .compliance import QUADRATURE_DEGREE, Forms, Split
+from . import compliance, contact, element, forms, measure
+from .forms import QUADRATURE_DEGREE
 
 
 def space(cfg, msh):
@@ -59,24 +59,46 @@ def gap(cfg, x, functions):
     return cfg.problem.gap(dict(zip(("x", "y", "z"), x)), functions) + 0 * x[0]
 
 
-@dataclass(frozen=True)
-class Gap:
-    """What the Γ_C measures read: w = u·n − g0 of u_h and u_ex (UFL), a(e, e) of an error e (UFL), and
-    the ContactTerm's vertex values of w_h (facets, n+1) with the facets' vertex points."""
-    w_h: object
-    w_exact: object
-    energy: object
-    term: contact.ContactTerm
+class Trace:
+    """The elastic solution on Γ_C, what the measures read: w = u·n − g0 of u_h and u_ex (UFL), the energy
+    seminorm a(e, e)^(1/2) of e = u_ex − u_h (Lemma 3.1's analogue), and from the ContactTerm's vertex values
+    of w_h the penetration and the contact set (exact for P1); ∫[w_h]_+^beta by the Γ_C error rule."""
+
+    def __init__(self, w_h, w_exact, u_exact, energy, term, domain):
+        self.w_h, self.w_exact, self.u_exact = w_h, w_exact, u_exact
+        self.energy_density, self.term, self.domain = energy, term, domain
 
     def vertex_values(self):
         return self.term.values(self.term.u_h.x.array)
 
+    def seminorm(self, level):
+        u_h = self.term.u_h
+        msh = u_h.function_space.mesh
+        degree = measure.error_degree(u_h.function_space, level.h)
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
+        return abs(measure.integrate(self.energy_density(self.u_exact - u_h), dx)) ** 0.5
 
-def forms(cfg, domain, u_h, eps):
-    """F(u_h; v) and J = dF/du of the weak form above, with the exact contact term beside UFL."""
+    def penetration(self):
+        return measure.vertex_penetration(self.domain.mesh.comm, self.vertex_values())
+
+    def contact_measure(self):
+        return measure.vertex_contact_measure(self.domain.mesh.comm, self.vertex_values(), self.term.points)
+
+    def positive_power(self, beta):
+        ds_c = self.domain.ds_c(measure.contact_error_degree(self.term.u_h.function_space))
+        return measure.integrate(measure.positive(self.w_h) ** beta, ds_c)
+
+    def energy(self, eps, contact_energy):
+        """No potential is measured for elasticity."""
+        return None
+
+
+def boundary(cfg, domain, u_h, eps):
+    """Elasticity's side of Γ_C (forms.Boundary): w = u·n − g0, v_n = v·n, the flux σ_n(u) = σ(u)n·n, with
+    a(u, v) = ∫ σ(u):ε(v), the load ∫ f·v and the traction ∫_Γc σ(u_ex)n·v of a manufactured u_ex."""
     msh = domain.mesh
     V = u_h.function_space
-    v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
+    v = ufl.TestFunction(V)
     mu, lmbda = lame(cfg.material)
     rule = cfg.contact_quadrature
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
@@ -87,38 +109,28 @@ def forms(cfg, domain, u_h, eps):
     g0 = gap(cfg, x, expressions.ufl_functions())
     w_h = ufl.dot(u_h, n) - g0
     w_ex = ufl.dot(u_ex, n) - g0 if u_ex is not None else None
-    term = contact_term(cfg, domain, u_h, eps)
-    exact_pp = type(cfg.positive_part)()  # the data use the exact positive part: u_ex solves the exact model
-    q = 0 if term is not None and term.penalty else compliance.compliance(
-        w_h, cfg.alpha, cfg.positive_part, fem.Constant(msh, domain.h), eps)
-    kink = 0 if u_ex is None or (term is not None and term.u_exact is not None) else compliance.compliance(
-        w_ex, cfg.alpha, exact_pp, None, eps)
+    traction = None if u_ex is None else ufl.dot(ufl.dot(sigma(u_ex, mu, lmbda), n), v) * ds_c
+
+    def term(penalty, kinked):
+        return contact_term(cfg, domain, u_h, eps, penalty, kinked)
+
     stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # P1: exact at degree 0
-    load = load_form(u_ex, v, n, mu, lmbda, dx, ds_c)
-    varying = stiffness
-    if not (_is_zero(q) and _is_zero(kink)):
-        varying = stiffness + (q - kink) / eps * ufl.dot(v, n) * ds_c
-    F = varying - load
-    J_varying = None if _is_zero(q) else ufl.derivative(varying - stiffness, u_h, du)
-    split = Split(F_fixed=-load, J_fixed=ufl.derivative(stiffness, u_h, du), F_varying=varying, J_varying=J_varying)
     energy = lambda e: ufl.inner(sigma(e, mu, lmbda), strain(e))  # noqa: E731
-    return Forms(F, ufl.derivative(F, u_h, du), u_ex, ds_c, split, term, near_nullspace=rigid_motions(V),
-                 gap=Gap(w_h, w_ex, energy, term or contact_term(cfg, domain, u_h, eps, measuring=True)))
+    measuring = contact_term(cfg, domain, u_h, eps, False, False, measuring=True)
+    trace = Trace(w_h, w_ex, u_ex, energy, measuring, domain)
+    return forms.Boundary(u_h, w_h, w_ex, ufl.dot(v, n), lambda u: ufl.dot(ufl.dot(sigma(u, mu, lmbda), n), n),
+                          traction, 0, ds_c, fem.Constant(msh, domain.h), term, stiffness,
+                          load_form(u_ex, v, mu, lmbda, dx), u_ex, trace, domain, rigid_motions(V))
 
 
-def load_form(u_ex, v, n, mu, lmbda, dx, ds_c):
-    """∫ f·v + ∫_Γc σ(u_ex)n·v with f = −div σ(u_ex); the physical problem (no u_ex): f = 0, ĝ = 0."""
+def load_form(u_ex, v, mu, lmbda, dx):
+    """∫ f·v with f = −div σ(u_ex); the physical problem (no u_ex): f = 0."""
     if u_ex is None:
         return ufl.inner(fem.Constant(v.ufl_function_space().mesh, np.zeros(len(v))), v) * dx
-    s = sigma(u_ex, mu, lmbda)
-    return ufl.dot(-ufl.div(s), v) * dx + ufl.dot(ufl.dot(s, n), v) * ds_c
+    return ufl.dot(-ufl.div(sigma(u_ex, mu, lmbda)), v) * dx
 
 
-def _is_zero(value):
-    return isinstance(value, (int, float)) and value == 0
-
-
-def contact_term(cfg, domain, u_h, eps, measuring=False):
+def contact_term(cfg, domain, u_h, eps, penalty, kinked, measuring=False):
     """The Γ_C terms beside UFL on w = u·n − g0 (contact_quadrature exact or vertex; None for a Gauss rule
     unless `measuring`: then a term that only reads w_h's vertex values). The kinked data term joins it
     when n is one vector on all of Γ_C: then w_ex is a function of x alone for the adaptive rules."""
@@ -130,12 +142,10 @@ def contact_term(cfg, domain, u_h, eps, measuring=False):
     if cfg.problem.normal is not None:
         normal = np.broadcast_to(np.array(cfg.problem.normal), normal.shape)
     n_c = common_normal(domain.mesh.comm, normal)
-    kinked = cfg.problem.exact is not None and n_c is not None and not measuring
-    u_fn = numpy_gap(cfg, n_c) if kinked else None
-    penalty = cfg.positive_part.kind == "exact" and not measuring
+    u_fn = numpy_gap(cfg, n_c) if kinked and n_c is not None and not measuring else None
     g0 = lambda points: gap(cfg, np.moveaxis(points, -1, 0), expressions.numpy_functions())  # noqa: E731
     return contact.ContactTerm(u_h, domain.facet_tags, CONTACT, cfg.alpha, eps, "exact" if measuring else rule,
-                               penalty, u_fn, normal=np.ascontiguousarray(normal), gap=g0)
+                               penalty and not measuring, u_fn, normal=np.ascontiguousarray(normal), gap=g0)
 
 
 def owned_contact_facets(domain):

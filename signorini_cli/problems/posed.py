@@ -9,7 +9,7 @@ from dolfinx import fem
 
 from ..config import ConfigError
 from ..meshing.meshes import CONTACT, facet_vertices
-from . import compliance
+from . import compliance, forms
 
 # One-sided difference step for ∂_n u_S (domains are O(1)): its truncation error δ|u''|/2 and round-off
 # 1e-16|u|/δ both stay near 1e-7 relative, far below SIGN_TOL.
@@ -45,9 +45,9 @@ def _exact_at_vertices(cfg, msh, eps_value):
 
 def _at_cell_points(msh, value):
     """(points, values) of a UFL expression at the quadrature points of the data terms in every cell."""
-    value = compliance.on_mesh(value, msh)
+    value = forms.on_mesh(value, msh)
     cell = msh.topology.cell_name()
-    X, _ = basix.make_quadrature(basix.cell.string_to_type(cell), compliance.QUADRATURE_DEGREE)
+    X, _ = basix.make_quadrature(basix.cell.string_to_type(cell), forms.QUADRATURE_DEGREE)
     cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
     size = int(np.prod(ufl.shape(value), dtype=int))  # explicit: a rank may own no cell (tiny meshes)
     x = fem.Expression(ufl.SpatialCoordinate(msh), X).eval(cells).reshape(len(cells), len(X), msh.geometry.dim)

@@ -1,19 +1,69 @@
-"""The problems by PDE: a study reaches its function space, forms, boundary condition and errors only
-through the module problem_of(cfg) returns, so a new PDE is one new module here."""
+"""Problems × methods: a study reaches its function space, forms, boundary condition and errors only
+through the Discretisation problem_of(cfg) returns, a problem (its PDE: space, operator, data, Γ_C side,
+errors) with the method that enforces its contact condition; a new PDE or method is one new module here."""
 import contextlib
 import weakref
+from dataclasses import dataclass
 
-from . import compliance, elasticity, posed, vi
+from . import compliance, elasticity, penalty, posed, vi
 
-# cfg.problem.pde -> the compliance problem's module, and the module of its ε → 0 limit (the Signorini VI)
+# cfg.problem.pde -> the problem's module
 PROBLEMS = {"poisson": compliance, "elasticity": elasticity}
+# (pde, method) -> the method's module, for the pairs that exist
+METHODS = {("poisson", "penalty"): penalty, ("elasticity", "penalty"): penalty}
+# the problem's ε → 0 limit solved as a variational inequality (paper eq. (8)), by pde
 LIMITS = {"poisson": vi}
 
 
+@dataclass(frozen=True)
+class Discretisation:
+    """A problem and the method that enforces its contact condition: what a study solves."""
+    problem: object
+    method: object
+
+    def space(self, cfg, msh):
+        return self.problem.space(cfg, msh)
+
+    def epsilon(self, cfg, h):
+        """ε on a mesh of size h: the law's for a method with ε, 0 for one without (as the VI's)."""
+        return cfg.epsilon(h) if self.method.EPSILON else 0.0
+
+    def continued(self, eps):
+        """The Constant the solver may continue in (ε-continuation): eps for a method with ε, else None."""
+        return eps if self.method.EPSILON else None
+
+    def forms(self, cfg, domain, u_h, eps):
+        """The level's Forms: the problem's operator and data with the method's contact term."""
+        return self.method.forms(cfg, self.problem.boundary(cfg, domain, u_h, eps), eps)
+
+    def dirichlet_condition(self, V, domain, u_exact):
+        return self.problem.dirichlet_condition(V, domain, u_exact)
+
+    def errors(self, u_h, u_exact, h):
+        return self.problem.errors(u_h, u_exact, h)
+
+
+def method_name(cfg):
+    """The configured contact method (problem.method)."""
+    return getattr(cfg.problem, "method", "penalty")
+
+
 def problem_of(cfg, limit=False):
-    """The module of cfg's problem (space, forms, dirichlet_condition, errors); with `limit`, the module
-    of its Signorini variational inequality (paper eq. (8))."""
-    return (LIMITS if limit else PROBLEMS)[cfg.problem.pde]
+    """The Discretisation of cfg's problem by its method; with `limit`, the module of its Signorini
+    variational inequality (paper eq. (8))."""
+    if limit:
+        return LIMITS[cfg.problem.pde]
+    return Discretisation(PROBLEMS[cfg.problem.pde], METHODS[cfg.problem.pde, method_name(cfg)])
+
+
+def method_of(cfg):
+    """The module of cfg's contact method."""
+    return METHODS[cfg.problem.pde, method_name(cfg)]
+
+
+def expected(cfg, norm):
+    """The rate cfg's method proves for the error column `norm` (analysis.rates.Expected)."""
+    return method_of(cfg).expected(cfg, norm)
 
 
 # the checks a problem's data pass before its first solve (problems/posed.py: the scalar problem's)

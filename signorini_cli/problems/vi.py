@@ -12,6 +12,7 @@ from dolfinx.fem import petsc as fem_petsc
 
 from ..solve import strategies
 from . import compliance, element, measure
+from .forms import QUADRATURE_DEGREE, Forms
 
 # A Γ_C node is in contact when its bound is active: vinewtonrsls puts active nodes exactly on the
 # bound (measured on the manufactured u_S, N = 16..256: contact nodes are 0.0, the free node nearest to
@@ -52,11 +53,11 @@ def forms(cfg, domain, u_h):
     """F(u_h; v) = ∫ ∇u_h·∇v − ∫ f v and J = dF/du; the contact lives in the bounds, not in F."""
     msh = domain.mesh
     v, du = ufl.TestFunction(u_h.function_space), ufl.TrialFunction(u_h.function_space)
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": compliance.QUADRATURE_DEGREE})
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
     u_exact = exact_solution(cfg, msh)
     f, _ = compliance.data(cfg, msh, None, u_exact, ufl.FacetNormal(msh))  # g = 0: homogeneous contact
     F = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * dx - f * v * dx
-    return compliance.Forms(F, ufl.derivative(F, u_h, du), u_exact, domain.ds_c(compliance.QUADRATURE_DEGREE))
+    return Forms(F, ufl.derivative(F, u_h, du), u_exact, domain.ds_c(QUADRATURE_DEGREE))
 
 
 def problem(cfg, domain, u_h, bc):

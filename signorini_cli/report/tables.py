@@ -9,6 +9,7 @@ from ..analysis import verdict
 from ..analysis.rates import fitted
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
+from ..problems import registry
 from ..record import csvfile
 from . import latex
 from . import plots as plotting  # its matplotlib import waits inside its functions
@@ -465,11 +466,11 @@ def wrote(names, folder=None):
 
 
 def proven_rates(cfg):
-    """{norm column: the rate the paper proves for this study's case} (rates.PAPER_RATES through the
-    verdict's lookup); empty when unknown."""
+    """{norm column: the rate proven for this study's case} (the method's rate records: the paper's
+    rates.PAPER_RATES for the penalty); empty when unknown."""
     if cfg is None:
         return {}
-    found = {norm: verdict.expected(cfg, norm).rate for norm in names.ERROR_NORMS + names.REFERENCE_NORMS}
+    found = {norm: registry.expected(cfg, norm).rate for norm in names.ERROR_NORMS + names.REFERENCE_NORMS}
     return {norm: rate for norm, rate in found.items() if rate is not None}
 
 

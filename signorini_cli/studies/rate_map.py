@@ -143,7 +143,7 @@ def row(cfg, values, levels, status, varied):
     interval, the plain fit (differs when the proven rate carries |ln h|), the proven rate, the verdict
     and the finest converged error; whether every level converged, Newton iterations, wall time."""
     out = {key: values.get(key) for key in varied}
-    for v in verdict.summarize(cfg, levels).norms if levels else ():
+    for v in verdict.summarize(cfg, levels, registry.expected).norms if levels else ():
         finest = [lv.errors.get(v.norm) for lv in levels if lv.outcome.converged]
         out.update({f"rate_{v.norm}": v.observed, f"rate_{v.norm}_lo": v.lo, f"rate_{v.norm}_hi": v.hi,
                     f"rate_{v.norm}_plain": getattr(v, "plain", v.observed), f"proven_{v.norm}": v.proven,

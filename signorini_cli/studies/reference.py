@@ -12,7 +12,7 @@ from dolfinx import fem
 from ..config import MESH_KINDS
 from ..meshing import meshes, refinement
 from ..problems import measure
-from ..problems.registry import problem_of
+from ..problems.registry import method_of, problem_of
 from ..solve import strategies
 from ..solve.transfer import transfer
 
@@ -35,7 +35,7 @@ class Reference:
         (reference_epsilon: per_level) or the law's on the reference mesh (fixed)."""
         if self.cfg.verification.reference_epsilon == "per_level":
             return level_eps
-        return self.cfg.epsilon(domain.h)
+        return problem_of(self.cfg).epsilon(self.cfg, domain.h)
 
     def measure(self, index, domain, u_h, level_eps, with_contact):
         """(errors, converged, seconds): the level's errors against its references at depths k and k - 1."""
@@ -70,7 +70,7 @@ class Reference:
         found = measure.difference_norms(moved, u_ref)
         if with_contact:
             ds_c = domain.ds_c(measure.contact_error_degree(u_ref.function_space))
-            found.update(measure.contact_errors(moved, u_ref, eps_value, self.cfg.alpha, ds_c, found["H1"]))
+            found.update(method_of(self.cfg).contact_errors(self.cfg, moved, u_ref, eps_value, ds_c, found["H1"]))
         return {f"{name}_ref": value for name, value in found.items()}
 
 
@@ -90,10 +90,10 @@ def solve(cfg, domain, u, eps_value, previous):
     """The level's problem with eps = eps_value on the reference mesh, solved into u by the study's
     strategy from `previous` (a level's u_h: the nested guess); u = 0 on Γ_D (data-only scenes)."""
     eps = fem.Constant(domain.mesh, eps_value)
-    problem_module = problem_of(cfg)
-    forms = problem_module.forms(cfg, domain, u, eps)
-    bcs = [problem_module.dirichlet_condition(u.function_space, domain, None)]
-    problem = strategies.problem(forms, u, bcs, eps, eps_value, cfg.dimension)
+    discretisation = problem_of(cfg)
+    forms = discretisation.forms(cfg, domain, u, eps)
+    bcs = [discretisation.dirichlet_condition(u.function_space, domain, None)]
+    problem = strategies.problem(forms, u, bcs, discretisation.continued(eps), eps_value, cfg.dimension)
     # the linear floor times the level's own solve, not its reference's
     return strategies.solve(dataclasses.replace(cfg.solver, linear_floor=False), problem, previous)
 

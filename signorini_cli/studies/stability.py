@@ -2,8 +2,6 @@
 the penetration max_Γc [u_h]_+, and on request the Jacobian's condition number (Level.extra columns)."""
 import math
 
-from ..meshing.meshes import CONTACT
-from ..problems import measure
 from ..solve import solver
 from . import verification
 
@@ -11,7 +9,7 @@ from . import verification
 SOLVER_COLUMNS = ("continuation_steps", "linear_fallback", "final_correction", "condition")
 
 
-def report(cfg, problem, domain, outcome, dofs):
+def report(cfg, problem, trace, outcome, dofs):
     """The stability columns this study's config calls for, in a fixed order."""
     solver_cfg, columns = cfg.solver, {}
     if solver_cfg.strategy in ("continuation", "auto"):
@@ -21,22 +19,11 @@ def report(cfg, problem, domain, outcome, dofs):
         columns["linear_fallback"] = outcome.linear_fallback
     columns["final_correction"] = outcome.correction
     if "penetration" not in verification.measures(cfg):  # else the verification column has it
-        columns["penetration"] = penetration(problem, domain)
+        columns["penetration"] = trace.penetration()  # max_Γc [w_h]_+ (the problem's trace)
     if solver_cfg.condition_max_dofs > 0:
         small = dofs <= solver_cfg.condition_max_dofs and outcome.converged
         columns["condition"] = condition_number(problem) if small else None
     return columns
-
-
-def penetration(problem, domain):
-    """max over Γ_C of [u_h]_+ (measure.penetration: a vertex value for P1, a segment's maximum for P2); on a
-    vector space [u_h·n − g0]_+ from the contact term's vertex values (None without one: a Gauss rule)."""
-    u_h = problem.u_h
-    if u_h.function_space.dofmap.index_map_bs > 1:
-        term = problem.contact
-        return None if term is None else measure.vertex_penetration(domain.mesh.comm, term.values(u_h.x.array))
-    dofs, _ = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
-    return measure.penetration(u_h, dofs)
 
 
 def condition_number(problem):

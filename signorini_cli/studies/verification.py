@@ -1,12 +1,10 @@
 """Per-level verification measures beyond L2/H1: Γ_C errors and quantities, successive differences, and
 errors against a reference solution for data-only scenes; written as Level.extra columns with rates."""
-import ufl
 from mpi4py import MPI
 
 from ..config import names
-from ..meshing.meshes import CONTACT
-from ..problems import contact, measure
-from ..problems.registry import problem_of
+from ..problems import measure
+from ..problems.registry import method_of
 from . import reference
 
 CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
@@ -19,7 +17,8 @@ def measures(cfg):
     """The measures a study takes: verification.measures, else the scene's defaults."""
     if cfg.verification.measures is not None:
         return cfg.verification.measures
-    return names.defaults("exact" if cfg.problem.exact is not None else "data")
+    taken = method_of(cfg).MEASURES
+    return tuple(m for m in names.defaults("exact" if cfg.problem.exact is not None else "data") if m in taken)
 
 
 class Verifier:
@@ -43,17 +42,17 @@ class Verifier:
         converged = level.outcome.converged
         errors = {}
         if forms.u_exact is not None and has_contact and _any_error(wanted):
-            w_h, w_exact, seminorm = _contact_variable(u_h, forms, level)
-            found = measure.contact_errors(w_h, w_exact, level.eps, self.cfg.alpha,
-                                           domain.ds_c(measure.contact_error_degree(u_h.function_space)),
-                                           seminorm)
+            trace = forms.trace  # w = u (scalar) or u·n − g0 (elasticity), and the error's (energy) seminorm
+            found = method_of(self.cfg).contact_errors(
+                self.cfg, trace.w_h, trace.w_exact, level.eps,
+                domain.ds_c(measure.contact_error_degree(u_h.function_space)), trace.seminorm(level))
             errors.update({k: v for k, v in found.items() if _wanted(k, wanted)})
         # a level that did not converge gets no reference solve and is no base for differences
         if self.reference is not None and converged:
             errors.update(self._against_reference(level, domain, u_h, wanted, has_contact))
         if "diff" in wanted and self.previous is not None and converged:
             errors.update(reference.successive_differences(self.previous, u_h))
-        quantities = self._quantities(level, domain, u_h, forms, wanted)
+        quantities = self._quantities(level, forms, wanted)
         level.errors.update(errors)
         self._columns(level, errors, quantities, wanted, has_contact)
         if "diff" in wanted and converged:  # kept for the successive differences only: a whole level's mesh
@@ -68,55 +67,14 @@ class Verifier:
         return {k: v for k, v in found.items()
                 if not k.endswith("_ref") or k in ("L2_ref", "H1_ref") or _wanted(k[:-4], wanted)}
 
-    def _quantities(self, level, domain, u_h, forms, wanted):
-        """Γ_C quantities of the P1 u_h, exact: nodal max, the measure of {u_h > 0} and ∫[u_h]_+^beta in
-        closed form (contact.positive_power, the rule of the solve's own penalty term)."""
-        found = {}
-        if forms.gap is not None:  # elasticity: w_h = u_h·n − g0 at the Γ_C facets' vertices
-            return self._normal_quantities(level, domain, u_h, forms, wanted)
-        dofs, points = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
+    def _quantities(self, level, forms, wanted):
+        """Γ_C quantities of u_h: the penetration max [w_h]_+ from the problem's trace (exact for P1), and the
+        method's own (its contact set, contact force, energy)."""
+        trace, found = forms.trace, {}
         if "penetration" in wanted:
-            found["penetration"] = measure.penetration(u_h, dofs)
-        if "contact_measure" in wanted:
-            found["contact_measure"] = measure.contact_measure(u_h, dofs, points)
-        alpha = self.cfg.alpha
-        if "contact_force" in wanted:
-            found["contact_force"] = self._positive_power(u_h, domain, dofs, points, alpha) / level.eps
-        if "energy" in wanted:
-            penalty = self._positive_power(u_h, domain, dofs, points, alpha + 1) / (alpha + 1)
-            found["energy"] = self._energy(level, domain, u_h, forms, penalty)
+            found["penetration"] = trace.penetration()
+        found.update(method_of(self.cfg).quantities(self.cfg, forms, level.eps, wanted))
         return found
-
-    def _normal_quantities(self, level, domain, u_h, forms, wanted):
-        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0: from its vertex values (penetration,
-        the contact set) and (1/eps)∫[w_h]_+^alpha by the Γ_C error rule (no potential energy)."""
-        comm, found = domain.mesh.comm, {}
-        values, points = forms.gap.vertex_values(), forms.gap.term.points
-        if "penetration" in wanted:
-            found["penetration"] = measure.vertex_penetration(comm, values)
-        if "contact_measure" in wanted:
-            found["contact_measure"] = measure.vertex_contact_measure(comm, values, points)
-        if "contact_force" in wanted:
-            ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
-            found["contact_force"] = measure.integrate(measure.positive(forms.gap.w_h) ** self.cfg.alpha,
-                                                       ds_c) / level.eps
-        return found
-
-    def _positive_power(self, u_h, domain, dofs, points, beta):
-        """∫_Γc [u_h]_+^beta: in closed form for P1 (the rule of the solve's own penalty term), else by the
-        Γ_C error quadrature of the element."""
-        if self.cfg.element.degree == 1:
-            return contact.positive_power(u_h, dofs, points, beta)
-        ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
-        return measure.integrate(measure.positive(u_h) ** beta, ds_c)
-
-    def _energy(self, level, domain, u_h, forms, penalty):
-        msh = domain.mesh
-        problem_module = problem_of(self.cfg)
-        f, g = problem_module.data(self.cfg, msh, level.eps, forms.u_exact, ufl.FacetNormal(msh))
-        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": problem_module.QUADRATURE_DEGREE})
-        ds_c = domain.ds_c(problem_module.QUADRATURE_DEGREE)  # g u_h: smooth data times u_h
-        return measure.energy(u_h, problem_module.on_mesh(f, msh), g, level.eps, dx, ds_c, penalty)
 
     def _columns(self, level, errors, quantities, wanted, has_contact):
         """Table columns in a fixed order on every level: each error and its rate, then the quantities;
@@ -132,18 +90,6 @@ class Verifier:
             level.extra[name] = quantities[name] if ok else None
         if self.reference is not None:
             level.extra["reference_time_s"] = self.reference_time_s if ok else 0.0  # not part of time_s
-
-
-def _contact_variable(u_h, forms, level):
-    """(w_h, w_ex, seminorm) the Γ_C errors read: u_h, u_ex and |e|_H1 for the scalar problem; for
-    elasticity w = u·n − g0 and the energy seminorm a(e, e)^(1/2) of e = u − u_h (Lemma 3.1's analogue)."""
-    if forms.gap is None:
-        return u_h, forms.u_exact, level.errors["H1"]
-    msh = u_h.function_space.mesh
-    degree = measure.error_degree(u_h.function_space, level.h)
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
-    a_ee = measure.integrate(forms.gap.energy(forms.u_exact - u_h), dx)
-    return forms.gap.w_h, forms.gap.w_exact, abs(a_ee) ** 0.5
 
 
 def error_columns(cfg, wanted, has_contact, with_reference):

@@ -6,7 +6,7 @@ from mpi4py import MPI
 
 from dolfinx import fem
 from signorini_cli.meshing import meshes
-from signorini_cli.problems import compliance
+from signorini_cli.problems.registry import problem_of
 
 EPS = 0.5
 ZERO = 0.3  # u_h = x - ZERO is P1: the interpolant is exact, and psi(u_h) kinks at x = ZERO, inside [0.25, 0.5]
@@ -17,7 +17,7 @@ def level(make_config, **changes):
     domain = meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF)
     u_h = fem.Function(fem.FunctionSpace(domain.mesh, ("Lagrange", 1)))
     u_h.interpolate(lambda x: x[0] - ZERO)
-    return compliance.forms(cfg, domain, u_h, fem.Constant(domain.mesh, EPS)), u_h
+    return problem_of(cfg).forms(cfg, domain, u_h, fem.Constant(domain.mesh, EPS)), u_h
 
 
 def contact_integrals(alpha):

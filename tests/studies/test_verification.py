@@ -14,7 +14,8 @@ from signorini_cli import studies
 from signorini_cli.config import names
 from signorini_cli.meshing import meshes
 from signorini_cli.meshing.meshes import DIRICHLET
-from signorini_cli.problems import compliance, measure
+from signorini_cli.problems import measure
+from signorini_cli.problems.registry import problem_of
 from signorini_cli.record import results
 from signorini_cli.studies import refinement, stability, verification
 
@@ -65,7 +66,7 @@ def test_no_contact_part_no_gamma_c_columns(make_config):
     all_dirichlet = dolfinx.mesh.meshtags(domain.mesh, 1, tags.indices, np.full_like(tags.values, DIRICHLET))
     domain = meshes.Domain(domain.mesh, all_dirichlet, domain.h, domain.h_min, 4)
     u_h = fem.Function(fem.FunctionSpace(domain.mesh, ("Lagrange", 1)))
-    forms = compliance.forms(cfg, domain, u_h, fem.Constant(domain.mesh, domain.h))
+    forms = problem_of(cfg).forms(cfg, domain, u_h, fem.Constant(domain.mesh, domain.h))
     level = SimpleNamespace(eps=domain.h, errors={"L2": 1.0, "H1": 1.0}, extra={},
                             outcome=SimpleNamespace(converged=True))
     verification.Verifier(cfg, MPI.COMM_SELF).measure(level, domain, u_h, forms)
