@@ -14,11 +14,11 @@ from contextlib import redirect_stdout
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 import provenance
 from signorini_cli import config
+from signorini_cli.analysis import rates
 from signorini_cli.app import cli
 from signorini_cli.record import csvfile, h5
 
@@ -316,8 +316,8 @@ def condition_section(by_eps, by_h):
 
 
 def slope(x, y):
-    pairs = [(a, b) for a, b in zip(x, y) if a and b]
-    return float(np.polyfit(np.log([a for a, _ in pairs]), np.log([b for _, b in pairs]), 1)[0]) if len(pairs) > 1 else None
+    """Least-squares slope of log y against log x over every point."""
+    return rates.slope(x, y, k=len(x))
 
 
 # --- contact quadrature rules ---------------------------------------------------------------------

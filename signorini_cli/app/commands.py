@@ -12,12 +12,11 @@ import yaml
 from mpi4py import MPI
 
 from .. import config, studies
-from ..analysis import verdict
 from ..config import ConfigError
 from ..meshing import geometries
 from ..problems import contact
 from ..record import results, resume
-from ..report import plots, progress, tables
+from ..report import plots, progress, tables, verdicts
 from ..solve import preflight, solver
 from ..system import errors
 from . import guard, maps, resources
@@ -292,7 +291,7 @@ def _outputs(cfg, result, summary):
     written = tables.write(study, cfg, cfg.output.digits, plots=cfg.output.plots, summary=summary)
     header = (f"study {cfg.study} ({cfg.study_type}): {cfg.output_dir} "
               f"(contact term: contact_quadrature {cfg.contact_quadrature})")
-    shown = [verdict.format_summary(summary)] if summary is not None else []
+    shown = [verdicts.format_summary(summary)] if summary is not None else []
     files = [str(path.relative_to(cfg.output_dir)) for path in written]
     return "\n".join([header, tables.terminal(study, cfg)] + shown + [tables.wrote(files)])
 
