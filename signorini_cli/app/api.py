@@ -2,7 +2,6 @@
 scripts. `run` writes no files unless asked; a callback sees each level's solution before it is let go."""
 import copy
 import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 
 from mpi4py import MPI
@@ -13,14 +12,7 @@ from ..record import results
 from . import guard
 
 
-@dataclass
-class Study:
-    """A finished study: its config, what the study type returned (Levels, a Sweep or a Total), its main
-    table as rows (dicts with the rates.csv columns) and, for refinement and signorini studies, its verdict."""
-    config: config.Config
-    result: object
-    rows: list
-    summary: object = None
+Study = studies.Study  # a finished study: config, result, tables (main table: `rows`) and verdict (`summary`)
 
 
 def load(source, **overrides):
@@ -40,20 +32,17 @@ def load(source, **overrides):
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
-    """Run cfg's study on `comm` and return it as a Study. on_level(level, u_h), if given, is called after
-    each solve of a refinement or signorini study (total_error: of its sub-studies) with the Level and its
-    solution u_h (a dolfinx Function; the mesh is u_h.function_space.mesh), before the study lets u_h go.
-    write=True writes rates.csv, summary.csv, study.h5 in cfg.output_dir as `signorini run` does."""
-    def each(result):
-        last = list(result)[-1]
+    """Run cfg's study on `comm` and return it as a Study (the runner of `signorini run`). on_level(level, u_h),
+    if given, is called after each solve of a refinement or signorini study (total_error: of its sub-studies)
+    with the Level and its solution u_h (a dolfinx Function; the mesh is u_h.function_space.mesh), before the
+    study lets u_h go. write=True writes rates.csv, summary.csv, study.h5 in cfg.output_dir as `signorini run`
+    does."""
+    def each(study):
+        last = list(study.result)[-1]
         if getattr(last, "solution", None) is not None:
             on_level(last, last.solution)
 
-    result = studies.run_study(cfg, on_level=each if on_level else None, comm=comm)
-    kind = studies.of(cfg.study_type)
-    summary = kind.summary(cfg, result)
+    study = studies.run(cfg, each if on_level else None, comm)
     if write:
-        rows = results.write(cfg, result, comm, status=guard.status(cfg, result))
-    else:
-        rows = results.main_rows(kind.tables(cfg, result))
-    return Study(cfg, result, rows, summary)
+        results.write(study, comm, status=guard.status(cfg, study.result))
+    return study
