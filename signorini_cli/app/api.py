@@ -35,14 +35,16 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
     """Run cfg's study on `comm` and return it as a Study (the runner of `signorini run`). on_level(level, u_h),
     if given, is called after each solve of a refinement or signorini study (total_error: of its sub-studies)
     with the Level and its solution u_h (a dolfinx Function; the mesh is u_h.function_space.mesh), before the
-    study lets u_h go. write=True writes rates.csv, summary.csv, study.h5 in cfg.output_dir as `signorini run`
-    does."""
+    study lets u_h go. write=True keeps rates.csv, summary.csv, study.h5 and status.txt in cfg.output_dir
+    current after every solve, as `signorini run` does (its tables and figures are the command's)."""
     def each(study):
-        last = list(study.result)[-1]
-        if getattr(last, "solution", None) is not None:
+        if write:
+            watch.level_done(study)
+        last = list(study.result)[-1] if study.solves else None
+        if on_level is not None and getattr(last, "solution", None) is not None:
             on_level(last, last.solution)
 
-    study = studies.run(cfg, each if on_level else None, comm)
-    if write:
-        results.write(study, comm, status=guard.status(cfg, study.result))
-    return study
+    if not write:
+        return studies.run(cfg, each if on_level else None, comm)
+    with guard.Watch(cfg, (), comm) as watch:
+        return studies.run(cfg, each, comm)

@@ -275,9 +275,9 @@ def run(cfg, quiet=False, verbose=False, done=()):
     if comm.rank == 0 and not quiet:
         with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
             print(text)
-    if study.summary is not None and not study.summary.met:  # the user's `expect:` block: batch runs gate on it
+    if not study.met:  # the user's `expect:` block: batch runs gate on it
         return EXIT_EXPECTATION_NOT_MET
-    return EXIT_OK if all(solve.outcome.converged for solve in study.result) else EXIT_NOT_CONVERGED
+    return EXIT_OK if study.converged else EXIT_NOT_CONVERGED
 
 
 def _outputs(study):

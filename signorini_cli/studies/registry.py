@@ -50,6 +50,16 @@ class Study:
         """How many solves the result holds."""
         return len(list(self.result))
 
+    @property
+    def converged(self):
+        """Whether every solve converged."""
+        return all(solve.outcome.converged for solve in self.result)
+
+    @property
+    def met(self):
+        """Whether the user's `expect:` rates were met (True without a verdict or an `expect:` block)."""
+        return self.summary is None or self.summary.met
+
 
 def study_of(cfg, result, summary=None):
     """The Study of `result` (a list of levels is copied: later levels do not join it); `summary`, when the
