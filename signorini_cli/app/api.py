@@ -8,7 +8,6 @@ from mpi4py import MPI
 
 from .. import config, studies
 from ..config import loader, settings
-from ..record import results
 from . import guard
 
 

@@ -62,10 +62,10 @@ class Study:
 
 
 def study_of(cfg, result, summary=None):
-    """The Study of `result` (a list of levels is copied: later levels do not join it); `summary`, when the
+    """The Study of `result` (levels are copied into a list: later levels do not join it); `summary`, when the
     verdict of the same solves is known already (the tables alone are built again: timings grew)."""
     kind = of(cfg.study_type)
-    result = list(result) if isinstance(result, list) else result
+    result = list(result) if isinstance(result, (list, tuple)) else result
     return Study(cfg, result, kind.tables(cfg, result), kind.summary(cfg, result) if summary is None else summary)
 
 
