@@ -17,6 +17,7 @@ import numpy as np
 
 import provenance
 from signorini_cli.analysis import rates
+from signorini_cli.record import csvfile, results
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "bench" / "configs"
@@ -131,24 +132,14 @@ def run_once(name, config, ranks, overrides):
 
 
 def read_run(name, config, ranks, overrides):
-    """A finished run's rows (rates.csv as floats), process wall time and exit status."""
+    """A finished run's rows (its record read back), process wall time and exit status."""
     out = RUNS / name
     facts = json.loads((out / "bench.json").read_text())
     study = next(path for path in out.iterdir() if path.is_dir())
-    with open(study / "rates.csv") as f:
-        rows = [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    rows = results.load(study).rows
     for row in rows:
         row["kb_per_dof"] = row["peak_memory_mb"] * 2**20 / 1000 / row["dofs"]
     return dict(facts, rows=rows, ranks=ranks, overrides=overrides)
-
-
-def _number(text):
-    if text in ("true", "false"):
-        return text == "true"
-    try:
-        return float(text)
-    except ValueError:
-        return text if text else None
 
 
 def write_csv(path, runs, machine):
@@ -468,11 +459,7 @@ def timed_together(commands, out):
 def solves_s(folder):
     """The levels' own wall time, summed over every point of a map folder (or over one study folder)."""
     paths = sorted(Path(folder).glob("points/*/rates.csv")) or [Path(folder) / "rates.csv"]
-    total = 0.0
-    for path in paths:
-        with open(path) as f:
-            total += sum(float(row["time_s"]) for row in csv.DictReader(f))
-    return total
+    return sum(row["time_s"] for path in paths for row in csvfile.read(path))
 
 
 def map_runs(repeats=3):
