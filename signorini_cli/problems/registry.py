@@ -43,22 +43,17 @@ class Discretisation:
         return self.problem.errors(u_h, u_exact, h)
 
 
-def method_name(cfg):
-    """The configured contact method (problem.method)."""
-    return getattr(cfg.problem, "method", "penalty")
-
-
 def problem_of(cfg, limit=False):
     """The Discretisation of cfg's problem by its method; with `limit`, the module of its Signorini
     variational inequality (paper eq. (8))."""
     if limit:
         return LIMITS[cfg.problem.pde]
-    return Discretisation(PROBLEMS[cfg.problem.pde], METHODS[cfg.problem.pde, method_name(cfg)])
+    return Discretisation(PROBLEMS[cfg.problem.pde], METHODS[cfg.problem.pde, cfg.problem.method])
 
 
 def method_of(cfg):
     """The module of cfg's contact method."""
-    return METHODS[cfg.problem.pde, method_name(cfg)]
+    return METHODS[cfg.problem.pde, cfg.problem.method]
 
 
 def expected(cfg, norm):
