@@ -5,12 +5,12 @@ import contextlib
 import weakref
 from dataclasses import dataclass
 
-from . import compliance, elasticity, penalty, posed, vi
+from . import compliance, elasticity, nitsche, penalty, posed, vi
 
 # cfg.problem.pde -> the problem's module
 PROBLEMS = {"poisson": compliance, "elasticity": elasticity}
 # (pde, method) -> the method's module, for the pairs that exist
-METHODS = {("poisson", "penalty"): penalty, ("elasticity", "penalty"): penalty}
+METHODS = {("poisson", "penalty"): penalty, ("elasticity", "penalty"): penalty, ("poisson", "nitsche"): nitsche}
 # the problem's ε → 0 limit solved as a variational inequality (paper eq. (8)), by pde
 LIMITS = {"poisson": vi}
 
