@@ -48,7 +48,9 @@ def parse(raw, base, folder):
     points = tuple(_point(p, f"map.points[{i}]") for i, p in enumerate(listed))
     if not grid and not points:
         raise ConfigError("map.grid", "give at least one dotted key with its list of values")
-    values = tuple(dict(zip(grid, combo)) for combo in itertools.product(*grid.values())) + points
+    # without a grid, itertools.product() would give one empty combination: the base config as a point
+    combos = itertools.product(*grid.values()) if grid else ()
+    values = tuple(dict(zip(grid, combo)) for combo in combos) + points
     wheres = ["map.grid.{key}"] * (len(values) - len(points)) + [f"map.points[{i}].{{key}}" for i in range(len(points))]
     studies = tuple(point_config(raw, k, point, base.output_dir / "points", folder, where)
                     for k, (point, where) in enumerate(zip(values, wheres)))

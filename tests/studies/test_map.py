@@ -68,6 +68,16 @@ def test_explicit_points_follow_the_grid(tmp_path):
 
 
 @pytest.mark.fast
+def test_points_without_a_grid_are_the_only_points(tmp_path):
+    """A map of explicit points alone runs those points, not the base config besides them."""
+    raw = map_raw(tmp_path, {})
+    raw["map"].pop("grid", None)
+    raw["map"]["points"] = [{"alpha": 3}, {"alpha": 2}]
+    cfg = config.loads(yaml.safe_dump(raw, sort_keys=False))
+    assert [s.alpha for s in cfg.map.studies] == [3, 2]
+
+
+@pytest.mark.fast
 @pytest.mark.parametrize("grid, message", [
     pytest.param({"alpha": [2, 0.5]}, "map.grid.alpha: point 1 (alpha=0.5): alpha: must be >= 1, got 0.5",
                  id="value"),
