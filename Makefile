@@ -115,6 +115,18 @@ $(MADE)/limit/%.status: % $(PACKAGE) | $(STAMP)
 docs/limit.md: $(LIMIT_STAMPS) scripts/limit_page.py scripts/cells.py scripts/provenance.py
 	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out $@
 
+# Nitsche's method beside the penalty model (docs/methods.md): run configs/methods/ (Nitsche θ = 1, 0, -1, the
+# penalty at ε = h^p and a map over problem.method, all on the manufactured u_S), then the page from the runs.
+METHOD_CONFIGS := $(sort $(wildcard configs/methods/*.yaml))
+METHOD_STAMPS := $(METHOD_CONFIGS:%=$(MADE)/methods/%.status)
+.PHONY: methods
+methods: docs/methods.md
+	$(call missed,$(METHOD_STAMPS))
+$(MADE)/methods/%.status: % $(PACKAGE) | $(STAMP)
+	$(call run,$<,--quiet)
+docs/methods.md: $(METHOD_STAMPS) scripts/methods_page.py scripts/cells.py scripts/provenance.py
+	$(PY) scripts/methods_page.py $(METHOD_CONFIGS) --out $@
+
 # P2 against P1 (docs/elements.md): run configs/elements/, then write the page from the runs.
 ELEMENT_CONFIGS := $(sort $(wildcard configs/elements/*.yaml))
 ELEMENT_STAMPS := $(ELEMENT_CONFIGS:%=$(MADE)/elements/%.status)

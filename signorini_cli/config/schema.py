@@ -149,7 +149,8 @@ class Problem:
                         example={"r": "sqrt(x**2 + y**2)", "t": "atan2(y, x)"}, only="optional")
     pde: str = key("poisson", "poisson (the scalar model) | elasticity (docs/elasticity.md)")
     method: str = key("penalty", "how the contact condition enters the discrete problem: penalty (the compliance "
-                                 "model, ε and α)", hashed_at_default=False)
+                                 "model, ε and α) | nitsche (Nitsche's method, section nitsche)",
+                      hashed_at_default=False)
     gap: expressions.Expression = key(None, "elasticity: the initial gap g0 in x, y (z) (default 0)",
                                       only="only with pde: elasticity")
     normal: tuple = key(None, "elasticity: the obstacle's unit normal, d numbers (default: Γ_C's outward normal)",
