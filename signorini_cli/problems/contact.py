@@ -9,7 +9,7 @@ from petsc4py import PETSc
 from scipy import special
 
 from ..config import ConfigError
-from . import measure
+from . import kinked, measure
 
 SERIES_SPREAD = 0.25  # series about the mean value c when every |u_j - c| <= c/4: terms shrink like 4^-j
 SERIES_TERMS = 32  # C(j+4, 4) 4^-j < 1e-14 from j = 32 on (at most 5 points in a divided difference)
@@ -144,11 +144,18 @@ def _cone(u, opposite, zeta, beta):
     return m0, m1, m2
 
 
-def positive_power(u_h, dofs, points, beta):
-    """∫_Γc [u_h]_+^beta over the rank's owned Γ_C facets (dofs, points as contact_facet_dofs), summed
-    over ranks: exact for the P1 u_h (the same closed forms as the solve's penalty term)."""
-    local = float(np.sum(measure.facet_sizes(points) * moments(u_h.x.array[dofs], beta)[0])) if len(dofs) else 0.0
-    return u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+def positive_power(comm, values, points, beta, degree=1):
+    """∫_Γc [w_h]_+^beta over the rank's owned Γ_C facets, summed over ranks, of the facet dof values
+    (facets, k) of a function of `degree` at the facets' dof points (facets, k, 3): P1 in closed form (the
+    solve's own rule), P2 on segments cut at the zeros of its quadratic (kinked.on_facets)."""
+    if not len(values):
+        local = 0.0
+    elif degree == 1:
+        local = float(np.sum(measure.facet_sizes(points) * moments(values, beta)[0]))
+    else:
+        trace = measure.on_facets(values)
+        local = float(np.sum(kinked.on_facets(points[:, :2], lambda *a: psi(trace[0](*a), beta), [trace])))
+    return comm.allreduce(local, op=MPI.SUM)
 
 
 # --- the kinked data term (1/eps)∫_Γc [u_ex]_+^alpha v: adaptive rules around the zeros of u_ex ------
