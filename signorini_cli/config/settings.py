@@ -249,12 +249,7 @@ class Output:
 @dataclass(frozen=True)
 class Element:
     """The finite element of the compliance problem: Lagrange of degree 1 or 2."""
-    degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature a Gauss rule)")
-
-
-# P2: no closed form for the contact term, so a Gauss rule on Γ_C; its degree by default (docs/elements.md
-# measures it against a rule of twice the degree)
-P2_CONTACT_QUADRATURE = 8
+    degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature exact or a Gauss rule)")
 
 
 @dataclass(frozen=True)
@@ -279,7 +274,7 @@ class Config:
     problem: Problem = key(None, "give exact, or f (and g)")
     positive_part: PositivePart = key(PositivePart(), "exact | smooth | {kind: smooth, delta: ...}")
     contact_quadrature: object = key("exact", "exact | vertex | an integer >= 1 (a Gauss rule of that degree); "
-                                              f"default {P2_CONTACT_QUADRATURE} with element.degree 2")
+                                              "default exact (P2: each facet cut at the zeros of its quadratic)")
     element: Element = key(Element(), "the finite element (docs/elements.md)")
     solver: Solver = key(Solver(), "Newton and linear solves (docs/guide/solvers.md)")
     output: Output = key(Output(), "where and what is written")
@@ -435,7 +430,7 @@ def validate(raw, folder=None):
                   expect=_expect(raw["expect"], "expect", raw.get("problem")) if "expect" in raw else None,
                   description=top.string("description", empty=True), outside_theory=outside,
                   element=_element(top.section("element"), "element"))
-    return _check_element(_study_type(_check_geometry_mesh(_elastic_verification(base, raw), raw), raw, folder), raw)
+    return _check_element(_study_type(_check_geometry_mesh(_elastic_verification(base, raw), raw), raw, folder))
 
 
 def _dimension(value, mesh):
@@ -605,10 +600,10 @@ def _element(raw, path):
     return Element(degree=_Section(raw, path, Element).integer("degree", low=1, high=2))
 
 
-def _check_element(cfg, raw):
-    """What P2 supports: the compliance refinement study in 2-D, its contact term by a Gauss rule (the
-    exact and vertex rules integrate piecewise linear u_h), fields written only for P1 (XDMF stores the
-    values at the mesh's vertices)."""
+def _check_element(cfg):
+    """What P2 supports: the compliance refinement study in 2-D, its contact term exact (each facet cut at
+    the zeros of the quadratic trace) or by a Gauss rule (the vertex rule lumps P1), fields written only for
+    P1 (XDMF stores the values at the mesh's vertices)."""
     if cfg.element.degree == 1:
         return cfg
     if cfg.study_type != "refinement":
@@ -619,11 +614,9 @@ def _check_element(cfg, raw):
                                             "contact_measure) are in closed form on segments only")
     if cfg.output.fields:
         raise ConfigError("output.fields", "written for element.degree 1 only (XDMF stores vertex values)")
-    if "contact_quadrature" not in raw:
-        return dataclasses.replace(cfg, contact_quadrature=P2_CONTACT_QUADRATURE)
-    if not isinstance(cfg.contact_quadrature, int):
-        raise ConfigError("contact_quadrature", f"{cfg.contact_quadrature} integrates P1 only; with "
-                                                "element.degree 2 give a Gauss rule's degree (an integer)")
+    if cfg.contact_quadrature == "vertex":
+        raise ConfigError("contact_quadrature", "vertex lumps P1 only; with element.degree 2 use exact or a "
+                                                "Gauss rule's degree (an integer)")
     return cfg
 
 

@@ -99,10 +99,14 @@ def on_facets(w):
     def trace(facets, lam, x):
         if lam.shape[-1] == values.shape[1]:  # P1: the barycentric coordinates are the basis
             return np.einsum("pqk,pk->pq", lam, values[facets])
-        l0, l1 = lam[..., 0], lam[..., 1]
-        basis = np.stack((l0 * (2 * l0 - 1), l1 * (2 * l1 - 1), 4 * l0 * l1), axis=-1)
-        return np.einsum("pqk,pk->pq", basis, values[facets])
+        return np.einsum("pqk,pk->pq", p2_basis(lam), values[facets])
     return trace, True
+
+
+def p2_basis(lam):
+    """The P2 basis on a segment at barycentric coordinates lam (..., 2): its vertices', then its midpoint's."""
+    l0, l1 = lam[..., 0], lam[..., 1]
+    return np.stack((l0 * (2 * l0 - 1), l1 * (2 * l1 - 1), 4 * l0 * l1), axis=-1)
 
 
 def energy(u_h, f, g, eps, dx, ds_c, penalty):
