@@ -7,9 +7,9 @@ import basix
 import ufl
 from dolfinx import fem
 
-from ..config import ConfigError
+from ..config import ConfigError, expressions
 from ..meshing.meshes import CONTACT, facet_vertices
-from . import compliance
+from . import compliance, elasticity
 
 # One-sided difference step for ∂_n u_S (domains are O(1)): its truncation error δ|u''|/2 and round-off
 # 1e-16|u|/δ both stay near 1e-7 relative, far below SIGN_TOL.
@@ -33,6 +33,28 @@ def check(cfg, domain, u_exact, eps_value):
                 _finite(msh, f"problem.{key}", getattr(cfg.problem, key).text, _at_cell_points(msh, value))
     if cfg.problem.exact_solves == "signorini":
         signorini_conditions(cfg, domain)
+
+
+def check_elastic(cfg, domain, u_exact, eps_value):
+    """Raise ConfigError (on every rank) when an elastic problem's data are not finite where the solve and
+    its errors evaluate them: u_ex's components and the gap g0 at the vertices, f = −div σ(u_ex) and ∇u_ex
+    at the cells' quadrature points."""
+    msh = domain.mesh
+    points = msh.geometry.x
+    variables = dict(zip(("x", "y", "z"), points.T[:msh.geometry.dim]), eps=eps_value)
+    functions = expressions.numpy_functions()
+    data = [("problem.exact", c) for c in cfg.problem.exact or ()] + [("problem.gap", cfg.problem.gap)]
+    for path, component in data:
+        if component is not None:
+            with np.errstate(all="ignore"):  # a nan is reported below, with its point
+                values = np.asarray(component(variables, functions), dtype=float)
+            _finite(msh, path, component.text, (points, np.broadcast_to(values, points.shape[:1])))
+    if u_exact is not None:
+        mu, lmbda = elasticity.lame(cfg.material)
+        f = -ufl.div(elasticity.sigma(u_exact, mu, lmbda))
+        texts = ", ".join(c.text for c in cfg.problem.exact)
+        _finite(msh, "problem.exact", f"f = -div σ(({texts}))", _at_cell_points(msh, f))
+        _finite(msh, "problem.exact", f"∇(({texts}))", _at_cell_points(msh, ufl.grad(u_exact)))
 
 
 def _exact_at_vertices(cfg, msh, eps_value):

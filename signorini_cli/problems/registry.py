@@ -16,8 +16,8 @@ def problem_of(cfg, limit=False):
     return (LIMITS if limit else PROBLEMS)[cfg.problem.pde]
 
 
-# the checks a problem's data pass before its first solve (problems/posed.py: the scalar problem's)
-POSED = {"poisson": posed.check}
+# the checks a problem's data pass before its first solve (problems/posed.py)
+POSED = {"poisson": posed.check, "elasticity": posed.check_elastic}
 
 
 _passed = None  # within checked_once(): {(id(mesh), data): weak reference to the mesh they passed on}
@@ -36,9 +36,8 @@ def checked_once():
 
 
 def check_posed(cfg, domain, u_exact, eps_value):
-    """ConfigError (on every rank) when the level's problem is not posed right, where its PDE has a check."""
-    if cfg.problem.pde not in POSED:
-        return
+    """ConfigError (on every rank) when the level's problem is not posed right: every path that solves calls
+    it before its first solve on a mesh (refinement levels, map points, the VI, ε-sweeps, total error)."""
     key = (id(domain.mesh), _data(cfg.problem, eps_value))
     if _passed is not None and key in _passed and _passed[key]() is domain.mesh:
         return
@@ -51,7 +50,13 @@ def check_posed(cfg, domain, u_exact, eps_value):
 
 def _data(problem, eps_value):
     """What the check of a problem's data depends on: their texts, and ε where they use it."""
-    texts = [e.text if e is not None else None for e in (problem.exact, problem.f, problem.g)]
-    uses_eps = any(e is not None and "eps" in e.names for e in (problem.exact, problem.f, problem.g))
+    given = _expressions(problem.exact) + [problem.f, problem.g, problem.gap]
+    texts = [e.text if e is not None else None for e in given]
+    uses_eps = any(e is not None and "eps" in e.names for e in given)
     defined = tuple((name, e.text) for name, e in problem.define)
     return repr((texts, defined, problem.exact_solves, eps_value if uses_eps else None))
+
+
+def _expressions(exact):
+    """The exact solution's expressions: one (scalar) or one per component (elasticity)."""
+    return list(exact) if isinstance(exact, tuple) else [exact]

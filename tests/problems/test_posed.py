@@ -1,5 +1,6 @@
 """Problems refused before solving: data nan or infinite where the solve evaluates them, and a
 manufactured Signorini solution that violates u_S <= 0, ∂_n u_S <= 0, u_S ∂_n u_S = 0 on Γ_C."""
+import re
 import warnings
 
 import pytest
@@ -89,3 +90,21 @@ def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
         for _ in range(2):
             with pytest.raises(ConfigError, match="is nan at"):
                 check_on(bad, domain)
+
+
+@pytest.mark.parametrize("changes, message", [
+    pytest.param({"problem": {"pde": "elasticity", "exact": ["sqrt(x-0.5)", "0"]}, "material": {"E": 1.0, "nu": 0.3}},
+                 r"problem.exact: sqrt\(x-0.5\) is nan at \(", id="elastic-nan"),
+    pytest.param({"study_type": "signorini", "alpha": None, "epsilon": None,
+                  "problem": {"exact": "sin(2*pi*x)*(1-y)**2", "exact_solves": "signorini"}},
+                 r"problem.exact: not a Signorini solution: u_S > 0 on Γ_C", id="signorini-study-u_S-positive"),
+])
+def test_every_study_type_refuses_before_solving(tmp_path, capsys, changes, message):
+    """Elasticity (else DIVERGED_FNORM_NAN) and the VI's study type (else solved and reported, rates near 0)
+    check their problem too: exit 2, one line."""
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(merge(merge(BASE, {"output": {"dir": str(tmp_path / "out")}}), changes)))
+    assert cli.main(["run", str(path)]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"signorini: error: {path}: ")
+    assert re.search(message, err)
