@@ -16,7 +16,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..config import ConfigError
-from ..record import results
+from ..record import results, resume
 from .. import studies
 from ..system import errors, files
 
@@ -195,6 +195,8 @@ class Watch:
         with deferred():
             start = time.perf_counter()
             rows = results_write(self.cfg, levels, self.comm, final=False)
+            with writing(self.cfg.output_dir):
+                resume.keep_solution(self.cfg, levels, self.comm)
             self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
             if isinstance(self.levels, list) and len(self.levels) > self.recorded:  # the new level's t_output
                 timings = self.levels[-1].timings
