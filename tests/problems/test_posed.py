@@ -64,16 +64,18 @@ def test_cli_exit_2_one_line(tmp_path, capsys):
 
 
 @pytest.mark.fast
-def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
-    """Within registry.checked_once() (a map) the data are checked once on a mesh, again for other data,
-    another mesh, or another ε when the data use eps; a refusal is never remembered as a pass."""
+def test_checked_once_per_mesh_family_and_data(make_config, monkeypatch):
+    """Within registry.checked_once() (a study, a map) the data are checked at the cells' points once per
+    mesh family, again for other data or another ε when the data use eps (the vertices on every level); a
+    refusal is never remembered as a pass."""
     from signorini_cli.problems import registry
     calls = []
-    monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest: calls.append(domain) or
-                        posed.check(cfg, domain, *rest))
+    monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest, cells: calls.append(cells) or
+                        posed.check(cfg, domain, *rest, cells=cells))
     plain, with_eps = make_config(), make_config(problem={"exact": "sin(2*pi*x)*(1-y)**2 + eps*x*y"})
     defined = [make_config(problem={"define": {"s": "sin(2*pi*x)"}, "exact": "s*(1-y)**2"}) for _ in range(2)]
     bad = make_config(problem={"exact": None, "f": "sqrt(0.5 - x)"})
+    crossed = make_config(mesh={"diagonal": "crossed"})
     domain, other = (meshes.build(plain.mesh, plain.contact, n, MPI.COMM_SELF) for n in (4, 8))
 
     def check_on(cfg, on, eps_value=0.1):
@@ -81,12 +83,15 @@ def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
                              eps_value)
     with registry.checked_once():
         for cfg, on, eps_value in [(plain, domain, 0.1), (plain, domain, 0.2), (plain, other, 0.1),
-                                   (with_eps, domain, 0.1), (with_eps, domain, 0.1), (with_eps, domain, 0.2)]:
+                                   (with_eps, domain, 0.1), (with_eps, other, 0.1), (with_eps, domain, 0.2)]:
             check_on(cfg, on, eps_value)
-        assert len(calls) == 4  # plain on each mesh (whatever ε), with_eps at each of its two ε
+        # plain once for the family whatever the mesh and ε, with_eps at each of its two ε
+        assert calls == [True, False, False, True, False, True]
         for cfg in defined:  # the same definitions, parsed twice (as two points of a map are)
             check_on(cfg, domain)
-        assert len(calls) == 5
+        assert calls[-2:] == [True, False]
+        check_on(crossed, domain)  # another family
+        assert calls[-1] is True
         for _ in range(2):
             with pytest.raises(ConfigError, match="is nan at"):
                 check_on(bad, domain)
