@@ -85,9 +85,13 @@ class Trace:
             self._facets = measure.contact_facet_dofs(self.w_h.function_space, self.domain.facet_tags, CONTACT)
         return self._facets
 
-    def seminorm(self, level):
-        """|u_ex − u_h|_H1, the level's own H1 error (Lemma 3.1's left side)."""
-        return level.errors["H1"]
+    def contact_variable(self, level):
+        """(points, w_h, w_ex, seminorm) the Γ_C errors read: the facets' vertices, u_h's facet dof values,
+        u_ex(facets, x) and |u_ex − u_h|_H1, the level's own H1 error (Lemma 3.1's left side)."""
+        dofs, points = self.facets()
+        u_ex = numpy_exact(self.cfg, self.domain.mesh.geometry.dim)
+        vertices = points[:, :self.domain.mesh.topology.dim]
+        return vertices, self.w_h.x.array[dofs], lambda facets, x: u_ex(x, level.eps), level.errors["H1"]
 
     def penetration(self):
         return measure.penetration(self.w_h, self.facets()[0])
@@ -96,12 +100,10 @@ class Trace:
         return measure.contact_measure(self.w_h, *self.facets())
 
     def positive_power(self, beta):
-        """∫_Γc [u_h]_+^beta: in closed form for P1 (the rule of the solve's own penalty term), else by the
-        Γ_C error quadrature of the element."""
-        if self.cfg.element.degree == 1:
-            return contact.positive_power(self.w_h, *self.facets(), beta)
-        ds_c = self.domain.ds_c(measure.contact_error_degree(self.w_h.function_space))
-        return measure.integrate(measure.positive(self.w_h) ** beta, ds_c)
+        """∫_Γc [u_h]_+^beta, exact (contact.positive_power: for P1 the closed form of the solve's own term)."""
+        dofs, points = self.facets()
+        return contact.positive_power(self.domain.mesh.comm, self.w_h.x.array[dofs], points, beta,
+                                      self.cfg.element.degree)
 
     def energy(self, eps, contact_energy):
         """The potential ½∫|∇u_h|² − ∫ f u_h + (contact_energy − ∫_Γc g u_h)/ε (measure.energy)."""

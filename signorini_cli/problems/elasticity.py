@@ -60,23 +60,39 @@ def gap(cfg, x, functions):
 
 
 class Trace:
-    """The elastic solution on Γ_C, what the measures read: w = u·n − g0 of u_h and u_ex (UFL), the energy
-    seminorm a(e, e)^(1/2) of e = u_ex − u_h (Lemma 3.1's analogue), and from the ContactTerm's vertex values
-    of w_h the penetration and the contact set (exact for P1); ∫[w_h]_+^beta by the Γ_C error rule."""
+    """The elastic solution on Γ_C, what the measures read: w = u·n − g0 of u_h and u_ex (UFL; w_ex also in
+    numpy, `exact`), the energy seminorm a(e, e)^(1/2) of e = u_ex − u_h (Lemma 3.1's analogue), and from the
+    vertex values of w_h (`term`: a ContactTerm that reads them) the penetration, the contact set and
+    ∫[w_h]_+^beta, exact for P1."""
 
-    def __init__(self, w_h, w_exact, u_exact, energy, term, domain):
-        self.w_h, self.w_exact, self.u_exact = w_h, w_exact, u_exact
+    def __init__(self, cfg, w_h, w_exact, u_exact, energy, term, domain):
+        self.cfg, self.w_h, self.w_exact, self.u_exact = cfg, w_h, w_exact, u_exact
         self.energy_density, self.term, self.domain = energy, term, domain
 
     def vertex_values(self):
         return self.term.values(self.term.u_h.x.array)
 
-    def seminorm(self, level):
+    def exact(self, eps_value):
+        """w_ex(facets, x) = u_ex(x)·n_F − g0(x) at points x (P, q, 3) of the rank's owned Γ_C facets F."""
+        normal = self.term.normal
+
+        def evaluate(facets, x):
+            coords = np.moveaxis(x, -1, 0)[:normal.shape[1]]
+            variables = dict(zip(("x", "y", "z"), coords), eps=eps_value)
+            functions = expressions.numpy_functions()
+            u = [np.broadcast_to(c(variables, functions), coords[0].shape) for c in self.cfg.problem.exact]
+            n = normal[facets]  # (P, d)
+            return sum(n[:, k, None] * u_k for k, u_k in enumerate(u)) - gap(self.cfg, coords, functions)
+        return evaluate
+
+    def contact_variable(self, level):
+        """(points, w_h, w_ex, seminorm) the Γ_C errors read: the facets' vertices, w_h's vertex values (as
+        the solve's contact term has them), w_ex(facets, x) and the energy seminorm of the error."""
         u_h = self.term.u_h
-        msh = u_h.function_space.mesh
         degree = measure.error_degree(u_h.function_space, level.h)
-        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
-        return abs(measure.integrate(self.energy_density(self.u_exact - u_h), dx)) ** 0.5
+        dx = ufl.Measure("dx", domain=u_h.function_space.mesh, metadata={"quadrature_degree": degree})
+        a_ee = measure.integrate(self.energy_density(self.u_exact - u_h), dx)
+        return self.term.points, self.vertex_values(), self.exact(level.eps), abs(a_ee) ** 0.5
 
     def penetration(self):
         return measure.vertex_penetration(self.domain.mesh.comm, self.vertex_values())
@@ -85,8 +101,8 @@ class Trace:
         return measure.vertex_contact_measure(self.domain.mesh.comm, self.vertex_values(), self.term.points)
 
     def positive_power(self, beta):
-        ds_c = self.domain.ds_c(measure.contact_error_degree(self.term.u_h.function_space))
-        return measure.integrate(measure.positive(self.w_h) ** beta, ds_c)
+        """∫_Γc [w_h]_+^beta from the vertex values, exact for P1 (contact.positive_power)."""
+        return contact.positive_power(self.domain.mesh.comm, self.vertex_values(), self.term.points, beta)
 
     def energy(self, eps, contact_energy):
         """No potential is measured for elasticity."""
@@ -117,7 +133,7 @@ def boundary(cfg, domain, u_h, eps):
     stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # P1: exact at degree 0
     energy = lambda e: ufl.inner(sigma(e, mu, lmbda), strain(e))  # noqa: E731
     measuring = contact_term(cfg, domain, u_h, eps, False, False, measuring=True)
-    trace = Trace(w_h, w_ex, u_ex, energy, measuring, domain)
+    trace = Trace(cfg, w_h, w_ex, u_ex, energy, measuring, domain)
     return forms.Boundary(u_h, w_h, w_ex, ufl.dot(v, n), lambda u: ufl.dot(ufl.dot(sigma(u, mu, lmbda), n), n),
                           traction, 0, ds_c, fem.Constant(msh, domain.h), term, stiffness,
                           load_form(u_ex, v, mu, lmbda, dx), u_ex, trace, domain, rigid_motions(V))

@@ -53,10 +53,10 @@ def forms(cfg, boundary, eps):
     return forms_.assemble(boundary, contact_form, term, not forms_.is_zero(q), load)
 
 
-def contact_errors(cfg, w_h, w, eps, ds_c, seminorm):
-    """Γ_C errors of w_h against w: L2(Γ_C), the positive parts in L^{α+1}(Γ_C) and the penalty energy
-    (|e|² + ε⁻¹‖[w]_+ − [w_h]_+‖^{α+1})^{1/2} of Lemma 3.1 (measure.contact_errors)."""
-    return measure.contact_errors(w_h, w, eps, cfg.alpha, ds_c, seminorm)
+def contact_errors(cfg, comm, points, w_h, w, eps, seminorm):
+    """Γ_C errors of w_h against w on the facets `points`: L2(Γ_C), the positive parts in L^{α+1}(Γ_C) and the
+    penalty energy (|e|² + ε⁻¹‖[w]_+ − [w_h]_+‖^{α+1})^{1/2} of Lemma 3.1 (measure.contact_errors)."""
+    return measure.contact_errors(comm, points, w_h, w, eps, cfg.alpha, seminorm)
 
 
 def quantities(cfg, forms, eps, wanted):

@@ -3,7 +3,6 @@ errors against a reference solution for data-only scenes; written as Level.extra
 from mpi4py import MPI
 
 from ..config import names
-from ..problems import measure
 from ..problems.registry import method_of
 from . import reference
 
@@ -42,10 +41,9 @@ class Verifier:
         converged = level.outcome.converged
         errors = {}
         if forms.u_exact is not None and has_contact and _any_error(wanted):
-            trace = forms.trace  # w = u (scalar) or u·n − g0 (elasticity), and the error's (energy) seminorm
-            found = method_of(self.cfg).contact_errors(
-                self.cfg, trace.w_h, trace.w_exact, level.eps,
-                domain.ds_c(measure.contact_error_degree(u_h.function_space)), trace.seminorm(level))
+            points, w_h, w_exact, seminorm = forms.trace.contact_variable(level)  # w = u, or u·n − g0
+            found = method_of(self.cfg).contact_errors(self.cfg, domain.mesh.comm, points, w_h, w_exact,
+                                                       level.eps, seminorm)
             errors.update({k: v for k, v in found.items() if _wanted(k, wanted)})
         # a level that did not converge gets no reference solve and is no base for differences
         if self.reference is not None and converged:
