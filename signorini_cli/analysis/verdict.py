@@ -255,7 +255,7 @@ def quantity_estimate(cfg, levels, name):
              if lv.outcome.converged and lv.extra.get(name) is not None]
     last = found[-3:]
     ns = tuple(x[2] for x in last)
-    if cfg.epsilon.p != 0:
+    if cfg.epsilon.p != 0 and len({lv.eps for lv in levels}) > 1:  # a method without ε records 0 on every level
         return QuantityEstimate(name, ns, None, f"eps = {cfg.epsilon.formula()} changes with h: each level "
                                                 "solves another continuous problem, no limit to extrapolate to")
     if len(last) < 3:
