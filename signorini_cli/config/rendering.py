@@ -11,15 +11,16 @@ from .schema import DOCS, MESH_KINDS, POWER_LAW, SECTIONS, Config, fields_of, ke
 
 
 def _entries(cls):
-    """(name, section class or None, default, example, doc, only) of each key of a section, the sections the
-    units register after the core keys of Config."""
+    """(name, section class or None, default, example, doc, only, required) of each key of a section, the
+    sections the units register after the core keys of Config; a required key's doc starts with "required"."""
     rows = []
     for name in keys_of(cls):
         f = fields_of(cls)[name]
+        required = f.metadata["required"]
         rows.append((name, f.type if f.type in SECTIONS else None, f.default, f.metadata["example"],
-                     f.metadata["doc"], f.metadata["only"]))
+                     ("required; " if required else "") + f.metadata["doc"], f.metadata["only"], required))
     if cls is Config:
-        rows += [(name, section.cls, None, None, section.doc, only) for name, section, only in units.sections()]
+        rows += [(name, section.cls, None, None, section.doc, only, False) for name, section, only in units.sections()]
     return rows
 
 
@@ -33,7 +34,7 @@ def template():
 
 def _template_lines(cls, depth, commented):
     lines = []
-    for name, section, value, example, doc, only in _entries(cls):
+    for name, section, value, example, doc, only, _ in _entries(cls):
         off = commented or bool(only)
         lead = ("# " if off else "") + "  " * depth  # a commented block uncomments as a whole
         comment = f"  # {doc}" + (f"; {only}" if only else "")
@@ -46,16 +47,19 @@ def _template_lines(cls, depth, commented):
 
 
 def documented_keys(cls=Config, prefix=""):
-    """(dotted path, default as YAML, description, when it applies) of every key, sections included: the
-    config reference (docs/reference/config.md) is generated from these, as `signorini init` is."""
+    """(dotted path, default as YAML ("" for a section or a required key), description, when it applies) of
+    every key, sections included: the config reference (docs/reference/config.md) is generated from these, as
+    `signorini init` is; a required key's description starts with "required"."""
     rows = []
-    for name, section, value, example, doc, only in _entries(cls):
+    for name, section, value, example, doc, only, required in _entries(cls):
         path = f"{prefix}.{name}" if prefix else name
         if section is not None:
             rows.append((path, "", doc, only))
             rows += documented_keys(section, path)
         else:
-            rows.append((path, _flow(example if value is None and example is not None else value), doc, only))
+            shown = example if value is None and example is not None else value  # delta: its default when smooth
+            shown = {} if value == () and isinstance(example, dict) else shown  # a mapping kept as pairs
+            rows.append((path, "" if required else _flow(shown), doc, only))
     return rows
 
 

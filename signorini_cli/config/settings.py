@@ -114,7 +114,7 @@ def _study_type(cfg, raw, pde, study):
     """The study type's rules: the blocks only some types read (map, limit), the keys it does not use, the
     Signorini problem of the types that solve the VI, its limit block."""
     for block, has in (("map", lambda unit: unit.POINTS), ("limit", lambda unit: unit.LIMIT is not None)):
-        if block in raw and not has(study) and not study.POINTS:
+        if block in raw and not has(study):
             raise ConfigError(block, f"only meaningful with study_type {units.takers(units.STUDY_TYPES, has)}")
     if study.POINTS:  # its block and points: config.map, which validates each point as a study
         return cfg

@@ -139,7 +139,7 @@ def test_to_dict_round_trip(changes):
 def test_define_feeds_exact_and_its_errors_name_the_key():
     cfg = load({"problem": {"define": {"r": "sqrt(x**2 + y**2)"}, "exact": "r**2"}})
     assert cfg.problem.exact({"x": 3.0, "y": 4.0}, config.expressions.math_functions()) == pytest.approx(25)
-    with pytest.raises(config.ConfigError, match=r"^problem.define: unknown name 'q'"):
+    with pytest.raises(config.ConfigError, match=r"^problem.define.r: unknown name 'q'"):
         load({"problem": {"define": {"r": "q*x"}, "exact": "r"}})
     with pytest.raises(config.ConfigError, match=r"^problem.define: must be a mapping"):
         load({"problem": {"define": ["r"], "exact": "x"}})
