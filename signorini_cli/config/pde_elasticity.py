@@ -9,6 +9,7 @@ from . import validators as check
 from .schema import COORDINATES, ConfigError, Problem, UnitSection, key, keys_of
 
 NAME = "elasticity"
+DOC = "docs/elasticity.md"  # how the reference and `signorini init` describe it beside its name
 KEYS = ("exact", "gap", "normal", "define")  # the problem keys it takes (besides pde and method)
 DEGREES = (1,)  # P1 only: its forms and Γ_C measures are built for piecewise linear u_h
 VI = False  # no Signorini variational inequality: it runs refinement studies

@@ -7,6 +7,7 @@ from . import validators as check
 from .schema import COORDINATES, ConfigError, Problem, default
 
 NAME = "poisson"
+DOC = "the scalar model"  # how the reference and `signorini init` describe it beside its name
 KEYS = ("exact", "f", "g", "exact_solves", "define")  # the problem keys it takes (besides pde and method)
 SECTION = None  # no section of its own
 DEGREES = (1, 2)  # the element degrees it has

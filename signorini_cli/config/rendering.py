@@ -17,11 +17,20 @@ def _entries(cls):
     for name in keys_of(cls):
         f = fields_of(cls)[name]
         required = f.metadata["required"]
+        doc = f.metadata["doc"]
+        if "{choices}" in doc:
+            doc = doc.replace("{choices}", _choices(name if cls is Config else f"{cls.__name__.lower()}.{name}"))
         rows.append((name, f.type if f.type in SECTIONS else None, f.default, f.metadata["example"],
-                     ("required; " if required else "") + f.metadata["doc"], f.metadata["only"], required))
+                     ("required; " if required else "") + doc, f.metadata["only"], required))
     if cls is Config:
         rows += [(name, section.cls, None, None, section.doc, only, False) for name, section, only in units.sections()]
     return rows
+
+
+def _choices(path):
+    """The units the key at `path` (study_type, problem.pde, problem.method) chooses among, each with its DOC:
+    "poisson (the scalar model) | elasticity (docs/elasticity.md)"."""
+    return " | ".join(name + (f" ({unit.DOC})" if unit.DOC else "") for name, unit in units.KINDS[path].items())
 
 
 def template():

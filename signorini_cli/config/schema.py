@@ -150,9 +150,9 @@ class Problem:
                                           "(docs/limit.md)")
     define: tuple = key((), "named subexpressions, in order (later names may use earlier ones)",
                         example={"r": "sqrt(x**2 + y**2)", "t": "atan2(y, x)"}, only="optional")
-    pde: str = key("poisson", "poisson (the scalar model) | elasticity (docs/elasticity.md)")
-    method: str = key("penalty", "how the contact condition enters the discrete problem: penalty (the compliance "
-                                 "model, ε and α)", hashed_at_default=False)
+    pde: str = key("poisson", "{choices}")  # the registered problems, each with its DOC (config/units.py)
+    method: str = key("penalty", "how the contact condition enters the discrete problem: {choices}",
+                      hashed_at_default=False)
     gap: expressions.Expression = key(None, "elasticity: the initial gap g0 in x, y (z) (default 0)",
                                       only="only with pde: elasticity")
     normal: tuple = key(None, "elasticity: the obstacle's unit normal, d numbers (default: Γ_C's outward normal)",
@@ -275,7 +275,7 @@ class Config:
     output: Output = key(Output(), "where and what is written")
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
-    study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error | map")
+    study_type: str = key("refinement", "{choices}")
     map: object = key(None, "a rate map: dotted keys -> values, one refinement study per combination",
                       example={"grid": {"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]}, "jobs": 1,
                                "ranks_per_point": 1}, only="only with study_type: map", required=True)

@@ -179,8 +179,8 @@ def chain(count, text):
 
 @pytest.mark.parametrize("texts, exact, message", [
     # each definition alone is small; inserted, they exceed the limits a literal expression has
-    pytest.param(chain(1000, "sin(K)"), "a1000", "a61: nested too deeply with its definitions inserted (depth 62, at most 61)",
-                 id="1000-nested"),
+    pytest.param(chain(1000, "sin(K)"), "a1000",
+                 "a61: nested too deeply with its definitions inserted (depth 62, at most 61)", id="1000-nested"),
     pytest.param(chain(30, "K*K"), "a30", "a10: too large with its definitions inserted (2047 terms",
                  id="30-doublings"),
     pytest.param({"a": "1000"}, "x*exp(a)", "'exp(a)' cannot be evaluated: math range error", id="exp-overflow"),

@@ -21,10 +21,10 @@ ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "signorini_cli" / "config"
 NAMES = set(units.PDES) | set(units.METHODS) | set(units.STUDY_TYPES)
 # what units.py's docstring says each kind of unit has
-INTERFACE = {"problem.pde": ("NAME", "KEYS", "SECTION", "DEGREES", "VI", "problem", "check_config"),
-             "problem.method": ("NAME", "PDES", "SECTION", "check_config"),
-             "study_type": ("NAME", "POINTS", "VI", "GEOMETRY", "FIELDS", "DEGREES", "UNUSED", "LIMIT", "SECTION",
-                            "check_config")}
+INTERFACE = {"problem.pde": ("NAME", "DOC", "KEYS", "SECTION", "DEGREES", "VI", "problem", "check_config"),
+             "problem.method": ("NAME", "DOC", "PDES", "SECTION", "check_config"),
+             "study_type": ("NAME", "DOC", "POINTS", "VI", "GEOMETRY", "FIELDS", "DEGREES", "UNUSED", "LIMIT",
+                            "SECTION", "check_config")}
 
 
 def load(changes):
