@@ -4,39 +4,17 @@ import copy
 import dataclasses
 import itertools
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import reading, rendering, settings
 from . import validators as check
-from .schema import ConfigError
+from .schema import ConfigError, Map, default, keys_of
 
 BLOCK = "map"  # the key of the map's own block
-KEYS = ("grid", "points", "jobs", "ranks_per_point")
 # points of one map at most: each is a refinement study, and checking one takes about a millisecond
 MAX_POINTS = 1000
 # what names, places or makes the map itself: a point takes these from the map
 FIXED = ("study", "study_type", BLOCK, "output", "description")
-
-
-@dataclass(frozen=True)
-class Map:
-    """The grid (dotted key -> values), explicit points, local workers and MPI ranks per point; `studies`
-    are the points' validated configs, in point order."""
-    grid: dict
-    points: tuple
-    jobs: int
-    ranks_per_point: int
-    studies: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
-    values: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
-
-    @property
-    def varied(self):
-        """The varied keys, grid first, in the order given: the columns of map.csv."""
-        keys = list(self.grid)
-        for point in self.points:
-            keys += [key for key in point if key not in keys]
-        return tuple(keys)
 
 
 def parse(raw, base, folder):
@@ -45,9 +23,9 @@ def parse(raw, base, folder):
     block = raw.get(BLOCK)
     if block is None:
         raise ConfigError(BLOCK, "missing: study_type map needs a map block (map.grid)")
-    check.keys(block, BLOCK, optional=KEYS)
+    check.keys(block, BLOCK, optional=keys_of(Map))
     grid = _grid(block.get("grid", {}), "map.grid")
-    listed = _list(block.get("points", []), "map.points")
+    listed = _list(block.get("points", list(default(Map, "points"))), "map.points")
     points = tuple(_point(p, f"map.points[{i}]") for i, p in enumerate(listed))
     if not grid and not points:
         raise ConfigError("map.grid", "give at least one dotted key with its list of values")
@@ -59,8 +37,8 @@ def parse(raw, base, folder):
     wheres = ["map.grid.{key}"] * (len(values) - len(points)) + [f"map.points[{i}].{{key}}" for i in range(len(points))]
     studies = tuple(point_config(raw, k, point, base.output_dir / "points", folder, where)
                     for k, (point, where) in enumerate(zip(values, wheres)))
-    return Map(grid, points, check.integer(block.get("jobs", 1), "map.jobs", low=1),
-               check.integer(block.get("ranks_per_point", 1), "map.ranks_per_point", low=1), studies, values)
+    s = check.Section(block, BLOCK, Map)
+    return Map(grid, points, s.integer("jobs", low=1), s.integer("ranks_per_point", low=1), studies, values)
 
 
 def _grid(raw, path):

@@ -66,9 +66,8 @@ def documented_keys(cls=Config, prefix=""):
             rows.append((path, "", doc, only))
             rows += documented_keys(section, path)
         else:
-            shown = example if value is None and example is not None else value  # delta: its default when smooth
-            shown = {} if value == () and isinstance(example, dict) else shown  # a mapping kept as pairs
-            rows.append((path, "" if required else _flow(shown), doc, only))
+            shown = {} if value == () and isinstance(example, dict) else value  # a mapping kept as pairs
+            rows.append((path, "" if required or value is None else _flow(shown), doc, only))
     return rows
 
 

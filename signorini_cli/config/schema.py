@@ -163,7 +163,8 @@ class Problem:
 class PositivePart:
     """[u]_+ exactly, or smoothed as (u + sqrt(u^2 + delta^2))/2 with delta an expression in h, eps."""
     kind: str = key("exact", "exact | smooth")
-    delta: expressions.Expression = key(None, "δ(h, eps) > 0 (docs/stability.md)", example=DEFAULT_DELTA,
+    delta: expressions.Expression = key(None, f"δ(h, eps) > 0, default {DEFAULT_DELTA} (docs/stability.md)",
+                                        example=DEFAULT_DELTA,
                                         only="only with kind: smooth")
 
 
@@ -249,6 +250,28 @@ class Element:
     degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature exact or a Gauss rule)")
 
 
+@dataclass(frozen=True)
+class Map:
+    """A rate map (study_type: map, docs/maps.md): the grid (dotted key -> values), explicit points, local
+    workers and MPI ranks per point; `studies` are the points' validated configs, in point order."""
+    grid: dict = key(None, "dotted key -> values; the map is every combination (last key fastest)",
+                     example={"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]})
+    points: tuple = key((), "explicit combinations as well, after the grid's: a list of {dotted key: value}",
+                        example=({"alpha": 4, "epsilon.law": "constant"},))
+    jobs: int = key(1, "local workers: jobs > 1 runs the map again under `mpirun -n jobs`")
+    ranks_per_point: int = key(1, "under mpirun: COMM_WORLD split into groups of this many ranks")
+    studies: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
+    values: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
+
+    @property
+    def varied(self):
+        """The varied keys, grid first, in the order given: the columns of map.csv."""
+        keys = list(self.grid)
+        for point in self.points:
+            keys += [key for key in point if key not in keys]
+        return tuple(keys)
+
+
 @dataclass(frozen=True, kw_only=True)
 class Config:
     study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study", required=True)
@@ -271,9 +294,8 @@ class Config:
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
     study_type: str = key("refinement", "{choices}")
-    map: object = key(None, "a rate map: dotted keys -> values, one refinement study per combination",
-                      example={"grid": {"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]}, "jobs": 1,
-                               "ranks_per_point": 1}, only="only with study_type: map", required=True)
+    map: Map = key(None, "a rate map: one refinement study per point (grid or points, or both)",
+                   only="only with study_type: map", required=True)
     limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)",
                        only="only with study_type: epsilon_sweep or total_error", required=True)
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
@@ -313,7 +335,7 @@ class UnitSection:
 
 # the core sections (a problem, method or study type registers its own: config/units.py)
 SECTIONS = (Config, Element, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification,
-            Expect, Limit)
+            Expect, Limit, Map)
 REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 

@@ -53,7 +53,8 @@ OTHER = {
     "output.figure_width": "390pt", "verification.fit_levels": 2, "verification.tolerance": 0.3,
     "verification.measures": ["L2_gc"], "verification.reference_refinements": 1,
     "verification.reference_epsilon": "fixed", "verification.regular": False, "expect.rates": {"H1": 1.0},
-    "expect.tolerance": 0.2, "study_type": "signorini", "map": {"grid": {"epsilon.theta": [0.5, 2.0]}},
+    "expect.tolerance": 0.2, "study_type": "signorini", "map.grid": {"epsilon.theta": [0.5, 2.0]},
+    "map.points": [{"alpha": 1.2}], "map.jobs": 2, "map.ranks_per_point": 2,
     "limit.alpha": [1.5, 3.0], "limit.epsilon": [1.0, 0.5, 0.25], "limit.theta": 2.0, "limit.exponent": [2.0],
     "limit.fit_last": 2, "material.E": 2.0, "material.nu": 0.25,
 }
