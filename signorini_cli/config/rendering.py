@@ -104,9 +104,9 @@ def to_dict(cfg):
         out["problem"].pop("define")
     if cfg.solver.method != "newtonls":  # the line search is for newtonls only (rejected otherwise)
         out["solver"].pop("line_search")
-    pde, _, study = units.chosen(cfg)
+    pde, method, study = units.chosen(cfg)
     out["problem"] = {key: value for key, value in out["problem"].items() if key in ("pde", "method") + pde.KEYS}
-    for key in study.UNUSED:
+    for key in (*method.UNUSED, *study.UNUSED):
         out.pop(key, None)
     if cfg.limit is not None:
         out["limit"] = {key: value for key, value in out["limit"].items()

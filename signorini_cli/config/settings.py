@@ -19,6 +19,9 @@ def validate(raw, folder=None):
         cfg = _core(raw, folder)
         pde, method, study = units.chosen(cfg)
         cfg = dataclasses.replace(cfg, sections=_sections(raw, cfg))
+        for key, hint in method.UNUSED.items():
+            if key in raw:
+                raise ConfigError(key, f"not used by problem.method {method.NAME}{hint}")
         cfg = method.check_config(pde.check_config(cfg, raw), raw)
         return _check_element(_study_type(_check_geometry_mesh(cfg, raw, study), raw, pde, study), pde, study)
 

@@ -7,7 +7,8 @@ A problem module has KEYS (the problem keys it takes besides pde and method), SE
 of its own, or None; then also section(raw, path)), DEGREES (its element degrees), VI (it has a Signorini
 variational inequality; then also check_vi(problem, study_type)), problem(raw, path, dim) -> schema.Problem
 and check_config(cfg, raw) -> cfg (its rules across sections).
-A method module has PDES (the problems it is built for), SECTION (and section(raw, path)) and
+A method module has PDES (the problems it is built for), SECTION (and section(raw, path)), UNUSED (top-level
+keys it refuses, e.g. the penalty's epsilon: key -> hint; to_dict leaves them out) and
 check_config(cfg, raw) -> cfg.
 A study type module has POINTS (a map of studies, config/map.py), VI (it solves the problem's VI),
 GEOMETRY (it runs on gmsh and .msh meshes), FIELDS (it writes output.fields), DEGREES, UNUSED (top-level keys
