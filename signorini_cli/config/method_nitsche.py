@@ -8,9 +8,11 @@ from . import validators as check
 from .schema import ConfigError, UnitSection, key, keys_of
 
 NAME = "nitsche"
+DOC = "Nitsche's method, section nitsche"  # beside its name in the reference and `signorini init`
 PDES = ("poisson",)  # scalar P1 (its Γ_C term is integrated exactly for P1)
+# the compliance model's keys: refused, and left out of the resolved config
+UNUSED = {key: f" ({NAME} has no ε and no α)" for key in ("alpha", "epsilon", "positive_part", "contact_quadrature")}
 THETAS = (1.0, 0.0, -1.0)  # symmetric, incomplete, skew-symmetric
-PENALTY_KEYS = ("alpha", "epsilon", "positive_part", "contact_quadrature")  # the compliance model's
 MEASURES = ("L2_gc", "penetration", "contact_measure", "contact_force", "diff")  # those it has (no ε, no α)
 
 
@@ -42,9 +44,6 @@ def check_config(cfg, raw):
     if study.VI:
         raise ConfigError("problem.method", f"{NAME} is solved by refinement studies and maps; study_type "
                                             f"{cfg.study_type} solves the Signorini VI and the penalty model")
-    for name in PENALTY_KEYS:
-        if name in raw:
-            raise ConfigError(name, f"only meaningful with problem.method: penalty ({NAME} has no ε and no α)")
     _check_problem(cfg.problem)
     if cfg.element.degree != 1:
         raise ConfigError("element.degree", f"{NAME} is built for P1 (its Γ_C term integrated exactly), "
