@@ -12,6 +12,7 @@ import yaml
 from mpi4py import MPI
 
 from .. import config, studies
+from ..analysis import rates
 from ..config import ConfigError
 from ..meshing import geometries
 from ..problems import contact
@@ -173,14 +174,23 @@ def compare(args):
         folder = Path(args.output) if args.output else found[0].folder.parent / "compare"
         rows = {f"{label} {part}".strip(): part_rows for label, study in zip(labels, found)
                 for part, part_rows in compared(study).items()}
+        fit_levels = {f"{label} {part}".strip(): _fit_levels(study) for label, study in zip(labels, found)
+                      for part in compared(study)}  # each study fitted as its own verdict fits it
         written = []
         if MPI.COMM_WORLD.rank == 0:
-            written = tables.write_comparison(rows, folder) + plots.write_comparison(rows, folder)
+            written = tables.write_comparison(rows, folder, fit_levels) + plots.write_comparison(rows, folder)
     except (ConfigError, OSError) as err:
         return fail("compare", err)
     if MPI.COMM_WORLD.rank == 0:
-        emit([tables.summary_table(rows), tables.wrote((p.name for p in written), folder)])
+        emit([tables.summary_table(rows, fit_levels), tables.wrote((p.name for p in written), folder)])
     return EXIT_OK
+
+
+def _fit_levels(study):
+    """The levels a study's rates are fitted over: its config's verification.fit_levels (the default
+    without a config)."""
+    cfg = study_config(study)
+    return cfg.verification.fit_levels if cfg is not None else rates.FIT_LEVELS
 
 
 def compared(study):
