@@ -15,7 +15,7 @@ from signorini_cli.record import results
 COLUMNS = ("N", "h", "dofs", "newton_its", "L2", "rate_L2", "H1", "rate_H1", "pos_gc", "rate_pos_gc",
            "contact_quadrature")
 NORMS = ("L2", "H1", "pos_gc")
-P2_RULE = config.settings.P2_CONTACT_QUADRATURE
+P2_RULE = config.schema.P2_CONTACT_QUADRATURE
 
 
 def main(argv=None):

@@ -7,7 +7,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from .. import config, studies
-from ..config import loader, settings
+from ..config import loader, reading
 from . import guard
 
 
@@ -25,7 +25,7 @@ def load(source, **overrides):
         if not isinstance(raw, dict):
             raise config.ConfigError("", "the config must be a YAML mapping of keys to values")
     for name, value in overrides.items():
-        settings.set_path(raw, name.replace("__", "."), value)
+        reading.set_path(raw, name.replace("__", "."), value)
     cfg = config.from_dict(raw, folder)
     return dataclasses.replace(cfg, text=config.yaml_dump(raw))
 

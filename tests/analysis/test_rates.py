@@ -68,8 +68,8 @@ def test_slope_fits_the_last_k_positive_points():
 
 
 def test_default_fit_levels_is_the_configs():
-    from signorini_cli.config import settings
-    assert settings.Verification().fit_levels == rates.FIT_LEVELS
+    from signorini_cli.config import schema
+    assert schema.Verification().fit_levels == rates.FIT_LEVELS
 
 
 ROOT = Path(__file__).resolve().parents[2]
