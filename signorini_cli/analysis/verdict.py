@@ -130,9 +130,10 @@ def norm_verdict(cfg, levels, norm):
 def log_note(found, log_corrected):
     """How a bound h^p |ln h| was read: its own local slope is p - 1/|ln h|, so the interval also holds
     where the rates head if they approach p that way; the slope of e/|ln h| beside it."""
-    ln_h = -math.log(found.midpoints[-1]) if found.midpoints else math.inf
+    m = found.midpoints[-1] if found.midpoints else 1.0
+    here = f"; 1/|ln h| = {-1 / math.log(m):.2f} here" if m < 1 else ""
     return (f"; the bound carries |ln h|: the rate is the plain slope, whose interval also holds where the rates "
-            f"head if they approach p as p - b/|ln h| ({found.log_limit:.2f}; 1/|ln h| = {1 / ln_h:.2f} here); "
+            f"head if they approach p as p - b/|ln h| ({found.log_limit:.2f}{here}); "
             f"log-corrected fit (slope of e/|ln h|) {_rate(log_corrected)}")
 
 
