@@ -298,3 +298,11 @@ def test_reference_depths_that_disagree_are_inconclusive(make_config):
     biased = levels({"L2_ref": deep, "L2_ref_shallow": [0.04, 0.01, 0.004, 0.003]}, extra)
     (l2,) = verdict.summarize(make_config(**data), biased).norms
     assert l2.verdict == verdict.INCONCLUSIVE and "the reference depth decides" in l2.reason
+
+
+def test_unchecked_hypotheses_are_in_the_reason(make_config):
+    lv = levels({"L2": [h**2 for h in H]})
+    (at_h,) = verdict.summarize(make_config(), lv).norms  # Lemma 4.2 under eps = h: theta must be large enough
+    assert "holds if theta large enough, Assumption 4.1 (not checked by a run)" in at_h.reason
+    (at_sqrt_h,) = verdict.summarize(make_config(epsilon={"law": "theta_sqrt_h", "theta": 1.0}), lv).norms
+    assert "theta large enough" not in at_sqrt_h.reason and "Assumption 4.1" in at_sqrt_h.reason
