@@ -33,7 +33,8 @@ def check(make_config, comm, **changes):
                  r"^problem.exact: not a Signorini solution: ∂_n u_S > 0 on Γ_C", id="u_S-pulls"),
     # f ~ r^-4/3 at the corner: its load changes by 2.4e-2 between the degrees 16 and 20
     pytest.param({"define": {"r": "sqrt(x**2 + y**2)"}, "exact": "r**(2/3)*(1-y)"},
-                 r"^problem.exact: the load of f = -Δ\(r\*\*\(2/3\)\*\(1-y\)\) does not settle.* \(most near \(0, 0\)\)",
+                 r"^problem.exact: the load of f = -Δ\(r\*\*\(2/3\)\*\(1-y\)\) does not settle"
+                 r".* \(most near \(0, 0\)\)",
                  id="unbounded-f-at-a-vertex"),
 ])
 def test_refused_before_solving(make_config, problem, message):
@@ -72,8 +73,8 @@ def test_cli_exit_2_one_line(tmp_path, capsys):
 @pytest.mark.fast
 def test_checked_once_per_mesh_family_and_data(make_config, monkeypatch):
     """Within registry.checked_once() (a study, a map) the data are checked at the cells' points (of the
-    family's coarsest mesh) once per mesh family, again for other data or another ε when the data use eps (the vertices on every level); a
-    refusal is never remembered as a pass."""
+    family's coarsest mesh) once per mesh family, again for other data or another ε when the data use eps
+    (the vertices on every level); a refusal is never remembered as a pass."""
     from signorini_cli.problems import registry
     calls = []
     monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest, coarsest: calls.append(
