@@ -284,18 +284,19 @@ def writing(folder):
 # --- one run per study folder --------------------------------------------------------------------
 
 class FolderLock:
-    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it. The kernel
-    drops it when the process ends, however it ends: a killed run leaves no stale lock. Folders made
-    for it are removed again on release when they stayed empty (a refused run leaves nothing)."""
+    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it (shared=True: a
+    shared one, which other shared holders may hold too, as a map's chunks do). The kernel drops it when the
+    process ends, however it ends: a killed run leaves no stale lock. Folders made for it are removed again
+    on release when they stayed empty (a refused run leaves nothing). `busy` ends the refusal's line."""
 
-    def __init__(self, folder, comm):
+    def __init__(self, folder, comm, shared=False, busy="; wait for it to end or choose another output folder"):
         self.folder, self.fd, self.made = Path(folder), None, []
-        refusal = self._acquire() if comm.rank == 0 else None
+        refusal = self._acquire(fcntl.LOCK_SH if shared else fcntl.LOCK_EX, busy) if comm.rank == 0 else None
         refusal = comm.bcast(refusal, root=0)
         if refusal is not None:
             raise ConfigError("output.dir", refusal)
 
-    def _acquire(self):
+    def _acquire(self, mode, busy):
         """None once the lock is held, else why not."""
         problem = files.unwritable(self.folder)  # not a folder, read-only, ...: before anything is made
         if problem is not None:
@@ -304,13 +305,12 @@ class FolderLock:
             self.made = [p for p in (*reversed(self.folder.parents), self.folder) if not p.exists()]
             self.folder.mkdir(parents=True, exist_ok=True)
             self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
-            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(self.fd, mode | fcntl.LOCK_NB)
             return None
         except OSError as err:
             self.release()
             if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
-                return f"{self.folder} is being written by another signorini run; wait for it to end or " \
-                       "choose another output folder"
+                return f"{self.folder} is being written by another signorini run{busy}"
             return f"{err.filename or self.folder}: cannot write there: {err.strerror}"
 
     def release(self):
@@ -330,6 +330,34 @@ class FolderLock:
     def __exit__(self, *exc):
         self.release()
         return False
+
+
+def try_lock(folder):
+    """An exclusive flock on `folder` (made when missing) for this process: its descriptor (closing it
+    drops the lock), or None when another run holds it."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as err:
+        os.close(fd)
+        if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+            return None
+        raise
+    return fd
+
+
+@contextmanager
+def held(folder):
+    """Within: an exclusive flock on `folder` (made when missing), waited for: what reads and rewrites
+    files that other runs write too does so one run at a time."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 # --- a closed stdout -----------------------------------------------------------------------------

@@ -61,25 +61,48 @@ def overwrite(path, text):
         f.write(text)
 
 
-def unwritable(folder):
+def unwritable(folder, tries=10):
     """None when `folder` (and its missing parents) can be made and a file written in it, else one line
-    naming the path at fault. Leaves nothing behind: folders it made are removed again."""
+    naming the path at fault. Leaves nothing behind: folders it made are removed again while empty. Another
+    run may make, fill or remove the same folders meanwhile (a map's chunks starting together): a folder
+    that vanished under the probe is probed again."""
     folder = Path(os.path.abspath(folder))
-    existing = next(p for p in (folder, *folder.parents) if os.path.lexists(p))
-    if not existing.is_dir():
-        return f"{existing} is not a folder"
+    for _ in range(tries):
+        existing = next(p for p in (folder, *folder.parents) if os.path.lexists(p))
+        if not existing.is_dir():
+            if os.path.lexists(existing):
+                return f"{existing} is not a folder"
+            continue  # removed since it was seen
+        problem = _probe(folder, _missing(folder, existing))
+        if problem != "vanished":
+            return problem
+    return f"{folder}: cannot write there: other runs keep making and removing it"
+
+
+def _probe(folder, missing):
+    """Make the missing folders and a file in `folder`, then remove what was made: None, one line, or
+    'vanished' when a folder was removed by another run meanwhile."""
     made = []
     try:
-        for missing in _missing(folder, existing):
-            missing.mkdir()
-            made.append(missing)
+        for path in missing:
+            try:
+                path.mkdir()
+                made.append(path)
+            except FileExistsError:
+                if not path.is_dir():
+                    raise
         with tempfile.TemporaryFile(dir=folder):
             pass
+    except FileNotFoundError:
+        return "vanished"
     except OSError as err:
         return f"{err.filename or folder}: cannot write there: {err.strerror}"
     finally:
         for path in reversed(made):
-            path.rmdir()
+            try:
+                path.rmdir()
+            except OSError:  # another run wrote into it, or removed it
+                break
     return None
 
 
