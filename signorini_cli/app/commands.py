@@ -125,9 +125,14 @@ def columns_suffix(columns):
 
 
 def report_map(args):
-    """A map's outputs redrawn from its folder."""
+    """A map's outputs redrawn from its folder (into --output instead when given); the options of a study's
+    tables are refused, a map has none of them."""
     try:
-        text = maps.report(args.path, draw=not args.no_plots) if MPI.COMM_WORLD.rank == 0 else None
+        given = [flag for flag, value in (("--digits", args.digits), ("--columns", args.columns),
+                                          ("--width", args.width), ("--per-norm", args.per_norm)) if value]
+        if given:
+            raise ConfigError(given[0], "applies to a study's tables and figures; a map's report has no such option")
+        text = maps.report(args.path, not args.no_plots, args.output) if MPI.COMM_WORLD.rank == 0 else None
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return fail(args.path, err)
     if text:

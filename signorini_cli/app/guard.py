@@ -118,10 +118,11 @@ def supervise(body):
         try:
             return body()
         except Interrupted as sig:
-            settle(sig, comm)
-            if comm.rank == 0:  # mpirun passes Ctrl-C on to every rank: one line, not one per rank
-                print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
-            _abort_if_parallel(comm, sig.exit_status)
+            with deferred(drop=True):  # a second signal (mpirun's SIGTERM to the ranks as one aborts) adds nothing
+                settle(sig, comm)
+                if comm.rank == 0:  # mpirun passes Ctrl-C on to every rank: one line, not one per rank
+                    print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
+                _abort_if_parallel(comm, sig.exit_status)
             return sig.exit_status
         except WriteFailed as err:  # raised on the writer (rank 0; any rank for fields): it speaks, ends the others
             errors.print_error("", f"{err}{err.note}")
@@ -223,13 +224,13 @@ class Watch:
             failed = WriteFailed(self.cfg.output_dir, err)
             self.__exit__(WriteFailed, failed, tb)
             raise failed from err
-        settle(err, self.comm)
-        state = self.ending(err)
-        if isinstance(err, Interrupted):
-            err.note = self.note(state)
-        elif isinstance(err, WriteFailed):
-            err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
-        with deferred(drop=True):
+        with deferred(drop=True):  # the study is ending: a second signal adds nothing
+            settle(err, self.comm)
+            state = self.ending(err)
+            if isinstance(err, Interrupted):
+                err.note = self.note(state)
+            elif isinstance(err, WriteFailed):
+                err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
             self.record(state)
         return False
 
@@ -438,19 +439,27 @@ def compiling_whole():
     """Within: a signal waits while FFCx compiles a form (dolfinx.jit.ffcx_jit), and interrupts the run
     right after. FFCx claims a form's entry in its cache (~/.cache/fenics) with an empty .c file and cleans
     up only after an Exception: a run interrupted while compiling left the claim, and every later run of
-    that form waited 10 s for it and failed. A compilation takes seconds."""
+    that form waited 10 s for it and failed. A compilation takes seconds. What the C compiler prints (gcc's
+    unused-variable warnings on FFCx's code) is kept off stderr unless the compilation fails."""
     from dolfinx import jit
     original = jit.ffcx_jit
 
     @functools.wraps(original)
     def ffcx_jit(*args, **kwargs):
         _signals.holding += 1
+        failure = ""
         try:
-            compiled = original(*args, **kwargs)
+            with files.stderr_in_memory() as printed:  # the C compiler's warnings (unused variables) are noise
+                try:
+                    compiled = original(*args, **kwargs)
+                except BaseException:
+                    failure = printed()
+                    raise
         except Exception:  # Ctrl-C reaches the compiler too: then the signal is the cause
             signum = _release()
             if signum is not None:
                 raise Interrupted(signum) from None
+            sys.stderr.write(failure)  # a failed compilation shows what the compiler said
             raise
         except BaseException:
             _release()

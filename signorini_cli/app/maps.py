@@ -269,8 +269,9 @@ def _write(cfg, folder, rows, draw):
     with guard.writing(folder):
         folder.mkdir(parents=True, exist_ok=True)
         written = maps.write(folder, rows, cfg.map.varied, draw=draw)
+    elsewhere = folder if folder != Path(cfg.output_dir) else None
     return "\n".join([maps.summary(rows, cfg.map.varied, title=f"map {cfg.study}: {cfg.output_dir}"),
-                      tables.wrote((path.name for path in written), folder if folder != Path(cfg.output_dir) else None)])
+                      tables.wrote((path.name for path in written), elsewhere)])
 
 
 def is_map(path):

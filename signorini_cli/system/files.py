@@ -2,6 +2,7 @@
 output folder can be made and written before a study starts; a C library's failed write as an OSError."""
 import errno
 import os
+import sys
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -123,31 +124,35 @@ def library_writes(path):
     """Within: a C library writing `path` (HDF5 through dolfinx's XDMFFile) prints its diagnostics into memory
     instead of onto stderr, and its failure (a RuntimeError) is an OSError naming `path`: ENOSPC when the disk
     holds no free block, else EIO with the library's last line."""
-    with _stderr_in_memory() as printed:
+    with stderr_in_memory() as printed:
         try:
             yield
         except RuntimeError as err:
             full = os.statvfs(Path(path).parent).f_bavail == 0
             code = errno.ENOSPC if full else errno.EIO
-            reason = os.strerror(code) if full else f"{os.strerror(code)}: {str(err).strip() or printed()}"
+            lines = printed().strip().splitlines()
+            last = lines[-1].strip() if lines else ""
+            reason = os.strerror(code) if full else f"{os.strerror(code)}: {str(err).strip() or last}"
             raise OSError(code, reason, str(path)) from None
 
 
 @contextmanager
-def _stderr_in_memory():
-    """Within: descriptor 2 writes into an anonymous file in memory (not onto a full disk); yields a function
-    giving its last line."""
+def stderr_in_memory():
+    """Within: descriptor 2 (sys.stderr too, and the programs started meanwhile) writes into an anonymous
+    file in memory (not onto a full disk); yields a function giving what was written."""
     memory = os.memfd_create("stderr")
+    sys.stderr.flush()
     saved = os.dup(2)
     os.dup2(memory, 2)
 
-    def last_line():
+    def printed():
+        sys.stderr.flush()
         os.lseek(memory, 0, os.SEEK_SET)
-        lines = os.read(memory, 1 << 20).decode(errors="replace").strip().splitlines()
-        return lines[-1].strip() if lines else ""
+        return os.read(memory, 1 << 20).decode(errors="replace")
     try:
-        yield last_line
+        yield printed
     finally:
+        sys.stderr.flush()
         os.dup2(saved, 2)
         for fd in (saved, memory):
             os.close(fd)
