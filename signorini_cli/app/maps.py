@@ -171,7 +171,7 @@ class Recorder:
                 self.on_level(point)
             return
         with guard.deferred():
-            guard.results_write(point.cfg, point.levels, point.comm)
+            guard.results_write(studies.study_of(point.cfg, point.levels), point.comm)
             if point.failure and point.comm.rank == 0:
                 results.write_status(point.cfg.output_dir, status_of(point))
         self.end(point)
