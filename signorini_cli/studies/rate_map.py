@@ -11,6 +11,7 @@ from ..analysis import verdict
 from ..config import ConfigError
 from ..meshing import meshes
 from ..problems import registry
+from ..solve import solver
 from . import jit_cache
 from . import refinement
 
@@ -39,6 +40,16 @@ class Point:
     done: bool = False
     before: list = field(default_factory=list)  # the levels an earlier run solved: the point goes on after them
     taken: bool = True  # False: on_level left the point to another run (a chunk of the same map writes it)
+
+    @property
+    def outcome(self):
+        """The point's study as one outcome (the Study of a map says whether every point converged): converged
+        when it ended without an exception and every level converged, with the Newton iterations of all."""
+        converged = (self.done and not self.failure and bool(self.levels)
+                     and all(lv.outcome.converged for lv in self.levels))
+        return solver.Outcome(converged, self.failure or ("CONVERGED" if converged else "NOT_CONVERGED"),
+                              sum(lv.outcome.newton_its for lv in self.levels),
+                              sum(lv.outcome.linear_its for lv in self.levels), ())
 
 
 def group_count(size, ranks_per_point):

@@ -277,7 +277,7 @@ def test_api_runs_a_map_with_the_rows_of_the_cli(tmp_path):
     assert not (tmp_path / "api").exists()  # no files without write=True
     assert seen == [2, 4, 2, 4]
     recorded = rows(tmp_path / "m")
-    assert [row["status"] for row in study.rows] == ["complete"] * 2
+    assert [row["status"] for row in study.rows] == ["complete"] * 2 and study.converged and study.met
     for row, csv_row in zip(study.rows, recorded):
         assert abs(row["L2"] - float(csv_row["L2"])) <= RTOL * row["L2"]
 
