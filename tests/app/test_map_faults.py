@@ -291,3 +291,24 @@ def test_api_write_honours_the_folder_lock(tmp_path):
             api_run(cfg, write=True)
         assert os.listdir(tmp_path / "t") == []
     assert api_run(cfg, write=True).rows and status(tmp_path / "t") == "complete"
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks_per_point", [1, 2])
+def test_chunks_on_two_ranks_write_each_point_once(tmp_path_factory, ranks_per_point):
+    """Chunks on 2 ranks (groups of 1 or 2): each group's rank 0 locks the points it takes; two chunks one
+    after the other give the complete map, every point written by one group."""
+    comm = MPI.COMM_WORLD
+    assert comm.size == 2
+    folder = Path(comm.bcast(str(tmp_path_factory.mktemp("chunks")) if comm.rank == 0 else None))
+    path = write_map(folder / "cfg", {"alpha": [1.5, 2, 2.5, 3]}, map={"ranks_per_point": ranks_per_point}) \
+        if comm.rank == 0 else None
+    path = comm.bcast(path)
+    cfg = load(path, output__dir=str(folder / "out"))
+    first = maps.run(cfg, "0-2", quiet=True, comm=comm)
+    second = maps.run(cfg, "3", quiet=True, comm=comm)
+    assert maps.exit_status(first, comm) == 0 and maps.exit_status(second, comm) == 0
+    taken = comm.allgather(sorted(p.index for p in first + second if p.comm.rank == 0))
+    assert sorted(sum(taken, [])) == [0, 1, 2, 3]
+    if comm.rank == 0:
+        assert status(folder / "out" / "m") == "complete"
