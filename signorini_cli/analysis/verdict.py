@@ -174,7 +174,9 @@ def expected(cfg, norm):
     if norm.endswith("_ref") and cfg.verification.reference_epsilon == "fixed" and p != 0:
         return rates.Expected(None, reason="reference_epsilon: fixed compares each level with a problem at "
                                            "another eps: the error contains the model error")
-    return rates.expected(cfg.dimension, cfg.alpha, p, norm)
+    if cfg.problem.method not in rates.RECORDS:
+        return rates.Expected(None, reason=f"no proven rates recorded for problem.method {cfg.problem.method}")
+    return rates.expected(cfg.dimension, cfg.alpha, p, norm, rates.RECORDS[cfg.problem.method])
 
 
 def _zero(expression):

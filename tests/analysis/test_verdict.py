@@ -334,3 +334,17 @@ def test_summary_reads_back_from_its_csv(make_config, tmp_path, changes, errors)
     path = tmp_path / "summary.csv"
     path.write_text(text)
     assert verdict.from_rows(cfg, csvfile.read(path)) == summary
+
+
+def test_proven_rates_are_the_methods_records(make_config, monkeypatch):
+    # a contact method brings its own records (rates.RECORDS); one without any is not covered
+    import dataclasses
+    cfg = make_config()
+    other = dataclasses.replace(cfg, problem=dataclasses.replace(cfg.problem, method="other"))
+    lv = levels({"L2": [h**2 for h in H]})
+    (none,) = verdict.summarize(other, lv).norms
+    assert none.verdict == verdict.NOT_COVERED and "no proven rates recorded for problem.method other" in none.reason
+    record = rates.Proven((2,), "any alpha", "any eps", "L2", "3/2", False, "Thm. X", "a test record")
+    monkeypatch.setitem(rates.RECORDS, "other", (record,))
+    (own,) = verdict.summarize(other, lv).norms
+    assert own.proven == 1.5 and own.reference == "Thm. X" and own.verdict == verdict.EXCEEDS
