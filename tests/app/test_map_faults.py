@@ -99,9 +99,20 @@ def test_jobs_as_root_give_mpirun_its_root_variables(monkeypatch):
     monkeypatch.setattr(os, "execve", lambda path, argv, env: started.update(argv=argv, env=env))
     for name in maps.ROOT_VARIABLES:
         monkeypatch.delenv(name, raising=False)
-    maps.relaunch(2)
-    assert started["argv"][1:3] == ["-n", "2"]
+    maps.relaunch(1)
+    assert started["argv"][1:3] == ["-n", "1"]
     assert all(started["env"][name] == "1" for name in maps.ROOT_VARIABLES)
+
+
+def test_more_jobs_than_cpus_refused(tmp_path, capsys):
+    """map.jobs above the CPUs this process may use: one line (mpirun refused it with a 10-line banner)."""
+    cpus = len(os.sched_getaffinity(0))
+    path = write_map(tmp_path / "cfg", {"alpha": [2]}, map={"jobs": cpus + 1})
+    assert cli.main(["run", path, "--output", str(tmp_path / "out")]) == cli.EXIT_BAD_INPUT
+    assert one_line(capsys) == (f"signorini: error: {path}: map.jobs: {cpus + 1} workers, but this process may "
+                                f"use {cpus} CPUs; set map.jobs <= {cpus}, or run the map under mpirun -n N "
+                                "yourself\n")
+    assert not (tmp_path / "out").exists()
 
 
 # --- --resume of a complete map with levels added ---------------------------------------------------------
