@@ -42,7 +42,8 @@ def relaunch(jobs):
         env.update({name: env.get(name, "1") for name in ROOT_VARIABLES})
     # Open MPI counts a slot per core, not per hardware thread: up to the CPUs this process may use are fine
     env.setdefault(OVERSUBSCRIBE, "1")
-    os.execve(mpirun, [mpirun, "-n", str(jobs), *sys.orig_argv], env)
+    # -q: no Open MPI banner after a rank's exit status 2 or 1: the ranks said it in one line
+    os.execve(mpirun, [mpirun, "-q", "-n", str(jobs), *sys.orig_argv], env)
 
 
 # who may write a map folder at once: the refusal's line says it

@@ -100,7 +100,7 @@ def test_jobs_as_root_give_mpirun_its_root_variables(monkeypatch):
     for name in maps.ROOT_VARIABLES:
         monkeypatch.delenv(name, raising=False)
     maps.relaunch(1)
-    assert started["argv"][1:3] == ["-n", "1"]
+    assert started["argv"][1:4] == ["-q", "-n", "1"]
     assert all(started["env"][name] == "1" for name in maps.ROOT_VARIABLES)
 
 
