@@ -70,6 +70,9 @@ def one_line(capsys):
                  "solver.petsc_options: point 0 (alpha=2): PETSc rejects these options", id="petsc-option"),
     pytest.param({"contact_quadrature": "exact"}, {"alpha": [2, 1023]},
                  "map.grid.alpha: point 1 (alpha=1023): alpha: 1023 is above 1022", id="alpha-exact-rule"),
+    pytest.param({}, {"problem.exact": ["x*(1-y)", "sin(sqrt(x*x+y*y))/sqrt(x*x+y*y)"]},
+                 "map.grid.problem.exact: point 1 (problem.exact=sin(sqrt(x*x+y*y))/sqrt(x*x+y*y)): problem.exact: "
+                 "sin(sqrt(x*x+y*y))/sqrt(x*x+y*y) is nan at (0, 0)", id="data-not-finite"),
     pytest.param({"map": {"ranks_per_point": 2}}, {"alpha": [2]},
                  "map.ranks_per_point: must divide the 1 MPI ranks, got 2", id="ranks-per-point"),
 ])
