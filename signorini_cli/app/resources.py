@@ -7,7 +7,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from ..config import ConfigError, geometry_files
+from ..config import ConfigError, geometry_files, units
 from ..meshing import geometries
 
 # Peak memory (ru_maxrss) of one serial level on this machine, minus the 94 MB after the imports:
@@ -27,6 +27,8 @@ GMSH_DOFS_PER_MEASURE = {2: 1.15, 3: 0.85}
 # grid a vertex dof couples with 19 dofs and an edge dof with 9, (19 + 3·9)/4 = 11.5 nonzeros per row. The
 # bytes per dof and per nonzero are P1's fit above, not measured for P2.
 P2_DOFS_PER_P1_DOF, P2_ROW_NONZEROS = 4, 11.5
+# A vector problem (elasticity) has d dofs per node, each row coupling with d times the scalar neighbours:
+# d times the dofs, d² times the nonzeros of the scalar space of the same element.
 
 
 def level_size(mesh_cfg, n):
@@ -70,10 +72,13 @@ def peak_meshes(cfg, comm):
     scene the reference mesh, verification.reference_refinements uniform refinements finer; None when
     a size cannot be told before meshing (a geometry gmsh cannot read: reported when it meshes)."""
     peak = p1_peak_meshes(cfg, comm)
-    if peak is None or cfg.element.degree == 1:
-        return peak
-    return [(label, P2_DOFS_PER_P1_DOF * dofs, round(P2_ROW_NONZEROS * P2_DOFS_PER_P1_DOF * dofs))
-            for label, dofs, _ in peak]
+    if peak is None:
+        return None
+    if cfg.element.degree == 2:
+        peak = [(label, P2_DOFS_PER_P1_DOF * dofs, round(P2_ROW_NONZEROS * P2_DOFS_PER_P1_DOF * dofs))
+                for label, dofs, _ in peak]
+    d = cfg.mesh.dimension if units.PDES[cfg.problem.pde].VECTOR else 1
+    return [(label, d * dofs, d * d * nonzeros) for label, dofs, nonzeros in peak]
 
 
 def p1_peak_meshes(cfg, comm):
