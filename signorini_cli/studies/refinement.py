@@ -92,7 +92,8 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     phases.deduct("errors", reference_s)
     if cfg.output.fields:
         with phases("output"):
-            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
+            elastic = (cfg, forms, eps_value) if forms.gap is not None else None
+            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact, elastic)
     measuring = reference_s + (outcome.floor_s or 0.0)  # the linear floor too: a measurement, not the study's work
     level.time_s = comm.allreduce(time.perf_counter() - start - measuring, op=MPI.MAX)
     level.timings = timing_columns(outcome, phases, comm, mesh_peak_mb)
