@@ -265,6 +265,13 @@ class Material:
     nu: float = key(0.3, "Poisson's ratio, in (-1, 0.5)")
 
 
+@dataclass(frozen=True)
+class Hertz:
+    """A Hertz contact (a cylinder in 2-D, a sphere in 3-D, of radius R, against a plane): its half-width,
+    peak pressure and force are reported beside Hertz's closed forms."""
+    radius: float = key(None, "the radius R of the curved body (or of the rigid obstacle), > 0", example=1.0)
+
+
 @dataclass(frozen=True, kw_only=True)
 class Config:
     study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study")
@@ -293,6 +300,9 @@ class Config:
     limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)",
                        only="only with study_type: epsilon_sweep or total_error")
     material: Material = key(None, "elasticity: {E, nu}", only="only with problem.pde: elasticity")
+    hertz: Hertz = key(None, "elasticity: {radius: R}: report the contact half-width, peak pressure and force "
+                             "against Hertz's (docs/guide/elasticity.md)",
+                       only="only with problem.pde: elasticity and no problem.exact")
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
 
     @property
@@ -312,7 +322,7 @@ class Config:
 
 
 SECTIONS = (Config, Element, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification,
-            Expect, Limit, Material)
+            Expect, Limit, Material, Hertz)
 REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 
@@ -427,7 +437,7 @@ def validate(raw, folder=None):
     base = Config(study=study, dimension=dim, alpha=alpha, epsilon=epsilon,
                   mesh=mesh, contact=_contact(raw["contact"], mesh, dim),
                   problem=_problem(raw.get("problem"), "problem", dim), positive_part=positive,
-                  material=_material(raw, dim),
+                  material=_material(raw, dim), hertz=_hertz(raw),
                   contact_quadrature=_contact_quadrature(top.get("contact_quadrature"), "contact_quadrature",
                                                          positive.kind),
                   solver=_solver(top.section("solver"), "solver"),
@@ -685,21 +695,24 @@ def _components(value, path, dim):
     return tuple(_expression(c, f"{path}[{i}]", COORDINATES[dim] + ("eps",)) for i, c in enumerate(value))
 
 
-ELASTIC_DATA_MEASURES = ("penetration", "contact_measure", "contact_force")
+ELASTIC_DATA_MEASURES = ("penetration", "contact_measure", "contact_force", "hertz")
 
 
 def _elastic_verification(cfg, raw):
-    """The physical elastic problem (no problem.exact) measures Γ_C quantities only: no reference
-    solution and no successive differences of vector fields."""
-    if cfg.problem.pde != "elasticity":
-        return cfg
-    if cfg.problem.exact is not None:
+    """The physical elastic problem (no problem.exact) measures Γ_C quantities only (with a hertz block,
+    Hertz's too): no reference solution and no successive differences of vector fields."""
+    measures = cfg.verification.measures or ()
+    if "hertz" in measures and cfg.hertz is None:
+        raise ConfigError(f"verification.measures[{measures.index('hertz')}]", "hertz needs a hertz block "
+                                                                                "(hertz: {radius: R})")
+    if cfg.problem.pde != "elasticity" or cfg.problem.exact is not None:
         return cfg
     v, given = cfg.verification, raw.get("verification", {})
     if given.get("reference_refinements") not in (None, 0):
         raise ConfigError("verification.reference_refinements", "pde: elasticity without problem.exact has no "
                                                                 "reference solution: set 0")
-    measures = v.measures if v.measures is not None else ELASTIC_DATA_MEASURES
+    default = ELASTIC_DATA_MEASURES[:3] + (("hertz",) if cfg.hertz is not None else ())
+    measures = v.measures if v.measures is not None else default
     for i, m in enumerate(measures):
         if m not in ELASTIC_DATA_MEASURES:
             raise ConfigError(f"verification.measures[{i}]", f"pde: elasticity without problem.exact measures "
@@ -716,6 +729,20 @@ def _normal(value, path, dim):
     if norm == 0:
         raise ConfigError(path, "must not be zero")
     return tuple(v / norm for v in n)
+
+
+def _hertz(raw):
+    """hertz: {radius} for the physical elastic problem (no problem.exact)."""
+    if "hertz" not in raw:
+        return None
+    problem = raw.get("problem")
+    if not (isinstance(problem, dict) and problem.get("pde") == "elasticity" and "exact" not in problem):
+        raise ConfigError("hertz", "only meaningful with problem.pde: elasticity and no problem.exact")
+    _keys(raw["hertz"], "hertz", required=("radius",))
+    radius = _Section(raw["hertz"], "hertz", Hertz).number("radius")
+    if radius <= 0:
+        raise ConfigError("hertz.radius", f"must be > 0, got {radius:g}")
+    return Hertz(radius)
 
 
 def _material(raw, dim):
@@ -937,18 +964,34 @@ def _study_type(cfg, raw, folder=None):
         if "limit" in raw:
             raise ConfigError("limit", "only meaningful with study_type epsilon_sweep or total_error")
         return cfg
-    if cfg.problem.pde == "elasticity":
-        raise ConfigError("study_type", f"{kind} solves the scalar Signorini problem; pde: elasticity "
-                                        "runs refinement studies")
     for key, hint in UNUSED[kind].items():
         if key in raw:
             raise ConfigError(key, f"not used by study_type {kind}{hint}")
-    _signorini_problem(cfg.problem, kind)
+    if cfg.problem.pde == "elasticity":
+        _elastic_limit(cfg, kind)
+    else:
+        _signorini_problem(cfg.problem, kind)
     if kind != "total_error" and cfg.output.fields:
         raise ConfigError("output.fields", f"not written by study_type {kind} (refinement and total_error only)")
     limit = None if kind == "signorini" else _limit(raw.get("limit"), "limit", kind, cfg.dimension,
                                                             cfg.outside_theory)
     return dataclasses.replace(cfg, study_type=kind, limit=limit)
+
+
+def _elastic_limit(cfg, kind):
+    """The elastic Signorini problem: the physical problem (f = 0, driven by the gap g0) with u·n ≤ g0 as
+    bounds on one component, so Γ_C a face with normal ± an axis (the built-in meshes' faces) and n its own."""
+    if kind == "total_error":
+        raise ConfigError("study_type", "total_error measures u_S − u_h: pde: elasticity has no manufactured "
+                                        "Signorini solution (signorini and epsilon_sweep run it)")
+    if cfg.problem.exact is not None:
+        raise ConfigError("problem.exact", f"study_type {kind} with pde: elasticity solves the physical problem "
+                                           "(f = 0, driven by problem.gap): give no exact solution")
+    i = FACES[cfg.dimension].index(cfg.contact)  # the faces x_k = 0, x_k = 1 in the order of the axes k
+    own = tuple((1.0 if i % 2 else -1.0) if k == i // 2 else 0.0 for k in range(cfg.dimension))
+    if cfg.problem.normal is not None and cfg.problem.normal != own:
+        raise ConfigError("problem.normal", f"study_type {kind} bounds u·n on the face's own normal {list(own)} "
+                                            "(one component of u): leave normal out")
 
 
 def _signorini_problem(problem, kind):

@@ -253,3 +253,20 @@ def pressure_values(cfg, term, eps_value, u_exact=False):
     else:
         w = term.values(term.u_h.x.array)
     return np.maximum(w, 0.0) ** cfg.alpha / eps_value
+
+
+def on_vertices(term, values):
+    """(sums, counts): `values` (facets, vertices) at the Γ_C facets' vertices summed per vertex, and how many
+    facets each vertex has, as local arrays of the scalar P1 space (ghosts included, owned facets summed across
+    ranks): the space and its arrays for fields and nodal pressures."""
+    from dolfinx.cpp.la import ScatterMode
+    Q, blocks = term.u_h.function_space.sub(0).collapse()
+    scalar_of = np.empty(len(term.u_h.x.array) // term.bs, dtype=np.int32)
+    scalar_of[np.asarray(blocks) // term.bs] = np.arange(len(blocks))
+    sums, counts = fem.Function(Q), fem.Function(Q)
+    np.add.at(sums.x.array, scalar_of[term.dofs], values)
+    np.add.at(counts.x.array, scalar_of[term.dofs], 1.0)
+    for f in (sums, counts):
+        f.x.scatter_reverse(ScatterMode.add)
+        f.x.scatter_forward()
+    return sums, counts

@@ -3,11 +3,11 @@ through the module problem_of(cfg) returns, so a new PDE is one new module here.
 import contextlib
 import weakref
 
-from . import compliance, elasticity, posed, vi
+from . import compliance, elastic_vi, elasticity, posed, vi
 
 # cfg.problem.pde -> the compliance problem's module, and the module of its ε → 0 limit (the Signorini VI)
 PROBLEMS = {"poisson": compliance, "elasticity": elasticity}
-LIMITS = {"poisson": vi}
+LIMITS = {"poisson": vi, "elasticity": elastic_vi}
 
 
 def problem_of(cfg, limit=False):

@@ -87,13 +87,13 @@ def elastic_fields(cfg, forms, eps_value, u_h):
     term = forms.gap.term
     found = [cellwise(elasticity.stress(cfg, u_h), "sigma", u_h), cellwise(elasticity.von_mises(cfg, u_h),
                                                                           "von_mises", u_h),
-             on_contact_nodes(u_h, term, elasticity.pressure_values(cfg, term, eps_value), "pressure")]
+             on_contact_nodes(term, elasticity.pressure_values(cfg, term, eps_value), "pressure")]
     if forms.u_exact is None:
         return found
     u_ex = nodal(forms.u_exact, u_h.function_space, "u_exact")
     return found + [u_ex, cellwise(elasticity.stress(cfg, forms.u_exact), "sigma_exact", u_h),
                     cellwise(elasticity.von_mises(cfg, forms.u_exact), "von_mises_exact", u_h),
-                    on_contact_nodes(u_h, term, elasticity.pressure_values(cfg, term, eps_value, u_exact=True),
+                    on_contact_nodes(term, elasticity.pressure_values(cfg, term, eps_value, u_exact=True),
                                      "pressure_exact")]
 
 
@@ -117,20 +117,12 @@ def nodal(expression, V, name):
     return function
 
 
-def on_contact_nodes(u_h, term, values, name):
+def on_contact_nodes(term, values, name):
     """A scalar P1 function with `values` (facets, vertices) at the Γ_C facets' vertices (a vertex's
-    facets averaged: they differ where the normal jumps), 0 elsewhere; owned facets summed across ranks."""
-    from dolfinx import fem
-    from dolfinx.cpp.la import ScatterMode
-    Q, blocks = u_h.function_space.sub(0).collapse()
-    scalar_of = np.empty(len(u_h.x.array) // term.bs, dtype=np.int32)
-    scalar_of[np.asarray(blocks) // term.bs] = np.arange(len(blocks))
-    total, count = fem.Function(Q, name=name), fem.Function(Q)
-    np.add.at(total.x.array, scalar_of[term.dofs], values)
-    np.add.at(count.x.array, scalar_of[term.dofs], 1.0)
-    for f in (total, count):
-        f.x.scatter_reverse(ScatterMode.add)
-        f.x.scatter_forward()
+    facets averaged: they differ where the normal jumps), 0 elsewhere."""
+    from ..problems import elasticity
+    total, count = elasticity.on_vertices(term, values)
+    total.name = name
     touched = count.x.array > 0
     total.x.array[touched] /= count.x.array[touched]
     return total

@@ -117,9 +117,10 @@ def timing_columns(outcome, phases, comm, mesh_peak_mb):
 
 
 def tables(cfg, levels):
-    """The record's tables, the main one first: rates and work_precision."""
+    """The record's tables, the main one first: rates, work_precision and the Γ_C pressure of each level."""
     rows = rate_table(levels)
-    return {"rates": rows, "work_precision": work_precision_rows(rows)}
+    pressure = [row for lv in levels for row in lv.profile]
+    return dict({"rates": rows}, **({"pressure": pressure} if pressure else {}), work_precision=work_precision_rows(rows))
 
 
 def summary(cfg, levels):
@@ -138,8 +139,11 @@ def parts(cfg, levels):
 
 
 def reported(cfg, named):
-    """The rate table and its convergence figures."""
-    return [Table("rates", named["rates"], paper=True)], [Figure("convergence", "convergence", named["rates"])]
+    """The rate table and its convergence figures; the contact pressure along Γ_C, level by level."""
+    figures = [Figure("convergence", "convergence", named["rates"])]
+    if named.get("pressure"):
+        figures.append(Figure("pressure", "pressure", (named["pressure"], named["rates"])))
+    return [Table("rates", named["rates"], paper=True)], figures
 
 
 def compared(named):

@@ -1,17 +1,18 @@
 """Per-level verification measures beyond L2/H1: Γ_C errors and quantities, successive differences, and
 errors against a reference solution for data-only scenes; written as Level.extra columns with rates."""
+import numpy as np
 import ufl
 from mpi4py import MPI
 
 from ..config import names
 from ..meshing.meshes import CONTACT
-from ..problems import contact, measure
+from ..problems import contact, hertz, measure, profile
 from ..problems.registry import problem_of
 from . import reference
 
 CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
 NEEDS_CONTACT = tuple(m.key for m in names.MEASURES if m.contact)
-QUANTITIES = tuple(m.key for m in names.MEASURES if m.kind == "quantity")  # no rates: values, not errors
+QUANTITIES = tuple(c for m in names.MEASURES if m.kind == "quantity" for c in m.columns)  # values, no rates
 REFERENCE_ERRORS = ("ref_err_L2", "ref_err_H1")  # ||u_ref(k-1) - u_ref(k)||: how exact each reference is
 
 
@@ -54,6 +55,8 @@ class Verifier:
         if "diff" in wanted and self.previous is not None and converged:
             errors.update(reference.successive_differences(self.previous, u_h))
         quantities = self._quantities(level, domain, u_h, forms, wanted)
+        if has_contact and converged:
+            level.profile = profile.rows(self.cfg, domain, u_h, forms, level.eps, level.index)
         level.errors.update(errors)
         self._columns(level, errors, quantities, wanted, has_contact)
         if "diff" in wanted and converged:  # kept for the successive differences only: a whole level's mesh
@@ -88,18 +91,21 @@ class Verifier:
         return found
 
     def _normal_quantities(self, level, domain, u_h, forms, wanted):
-        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0: from its vertex values (penetration,
-        the contact set) and (1/eps)∫[w_h]_+^alpha by the Γ_C error rule (no potential energy)."""
+        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0, linear on each facet: from its vertex
+        values (penetration, the contact set), (1/eps)∫[w_h]_+^alpha in closed form (no potential energy),
+        and with a hertz block the half-width and peak pressure against Hertz's (problems/hertz.py)."""
         comm, found = domain.mesh.comm, {}
-        values, points = forms.gap.vertex_values(), forms.gap.term.points
+        term = forms.gap.term
+        values, points = forms.gap.vertex_values(), term.points
         if "penetration" in wanted:
             found["penetration"] = measure.vertex_penetration(comm, values)
         if "contact_measure" in wanted:
             found["contact_measure"] = measure.vertex_contact_measure(comm, values, points)
         if "contact_force" in wanted:
-            ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
-            found["contact_force"] = measure.integrate(measure.positive(forms.gap.w_h) ** self.cfg.alpha,
-                                                       ds_c) / level.eps
+            local = float(np.sum(term.sizes * contact.moments(values, self.cfg.alpha)[0])) if len(values) else 0.0
+            found["contact_force"] = comm.allreduce(local, op=MPI.SUM) / level.eps
+        if "hertz" in wanted:
+            found.update(hertz.quantities(self.cfg, term, level.eps))
         return found
 
     def _positive_power(self, u_h, domain, dofs, points, beta):
