@@ -16,7 +16,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..config import ConfigError
-from ..record import results
+from ..record import results, resume
 from .. import studies
 from ..system import errors, files
 
@@ -118,10 +118,11 @@ def supervise(body):
         try:
             return body()
         except Interrupted as sig:
-            settle(sig, comm)
-            if comm.rank == 0:  # mpirun passes Ctrl-C on to every rank: one line, not one per rank
-                print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
-            _abort_if_parallel(comm, sig.exit_status)
+            with deferred(drop=True):  # a second signal (mpirun's SIGTERM to the ranks as one aborts) adds nothing
+                settle(sig, comm)
+                if comm.rank == 0:  # mpirun passes Ctrl-C on to every rank: one line, not one per rank
+                    print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
+                _abort_if_parallel(comm, sig.exit_status)
             return sig.exit_status
         except WriteFailed as err:  # raised on the writer (rank 0; any rank for fields): it speaks, ends the others
             errors.print_error("", f"{err}{err.note}")
@@ -178,28 +179,37 @@ class Watch:
     reason, interrupted at level k."""
 
     def __init__(self, cfg, done, comm):
-        self.cfg, self.levels, self.comm = cfg, list(done), comm
+        self.cfg, self.comm = cfg, comm
+        self.study = studies.study_of(cfg, done)  # what is on disk
         self.done = self.recorded = len(done)
 
     def __enter__(self):
         try:
-            self.level_done(self.levels)  # a forced rerun replaces the old results at once
+            self.level_done(self.study)  # a forced rerun replaces the old results at once
         except BaseException as err:  # __exit__ is not called when __enter__ fails: record, then go on
             self.__exit__(type(err), err, err.__traceback__)
             raise
         return self
 
-    def level_done(self, levels):
-        """run_study's on_level: write the results whole (signals wait), then the testing hook; the rows.
-        self.levels are the levels on disk: a level whose writing failed is not among them."""
+    @property
+    def levels(self):
+        """The solves on disk: a level whose writing failed is not among them."""
+        return self.study.result
+
+    def level_done(self, study):
+        """The runner's on_study: write the study whole (signals wait), then the testing hook; its rows.
+        The new level's row gets the time its writing took (t_output), as the final record has it."""
         with deferred():
             start = time.perf_counter()
-            rows = results_write(self.cfg, levels, self.comm, final=False)
-            self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
-            if isinstance(self.levels, list) and len(self.levels) > self.recorded:  # the new level's t_output
-                timings = self.levels[-1].timings
+            rows = results_write(study, self.comm, final=False)
+            with writing(self.cfg.output_dir):
+                resume.keep_solution(self.cfg, study.result, self.comm)
+            self.study = study
+            if isinstance(study.result, list) and len(study.result) > self.recorded:  # the new level's t_output
+                timings = study.result[-1].timings
                 timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
-                self.recorded = len(self.levels)
+                rows[-1]["t_output"] = timings["t_output"]
+                self.recorded = len(study.result)
         return rows
 
     @property
@@ -215,7 +225,7 @@ class Watch:
     def __exit__(self, kind, err, tb):
         if err is None:
             with deferred():  # the final status, and the last level's record with its own t_output
-                results_write(self.cfg, self.levels, self.comm)
+                results_write(self.study, self.comm)
             return False
         if not isinstance(err, (Exception, Interrupted)):
             return False
@@ -223,13 +233,13 @@ class Watch:
             failed = WriteFailed(self.cfg.output_dir, err)
             self.__exit__(WriteFailed, failed, tb)
             raise failed from err
-        settle(err, self.comm)
-        state = self.ending(err)
-        if isinstance(err, Interrupted):
-            err.note = self.note(state)
-        elif isinstance(err, WriteFailed):
-            err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
-        with deferred(drop=True):
+        with deferred(drop=True):  # the study is ending: a second signal adds nothing
+            settle(err, self.comm)
+            state = self.ending(err)
+            if isinstance(err, Interrupted):
+                err.note = self.note(state)
+            elif isinstance(err, WriteFailed):
+                err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
             self.record(state)
         return False
 
@@ -256,7 +266,7 @@ class Watch:
         """Write the results with `state` from this rank alone: the others may be gone or waiting. When
         they cannot be written (a full disk), status.txt alone, in place."""
         try:
-            results.write_files(self.cfg, self.levels, self.comm.size, state)
+            results.write_files(self.study, self.comm.size, state)
         except OSError as err:
             logger.debug("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
             try:
@@ -265,11 +275,11 @@ class Watch:
                 logger.warning("could not record the status %r: %s", state, again.strerror or again)
 
 
-def results_write(cfg, levels, comm, final=True):
-    """rates.csv, study.h5 and status.txt of the levels so far (collective); the table's rows.
+def results_write(study, comm, final=True):
+    """rates.csv, study.h5 and status.txt of a studies.Study (collective); the main table's rows.
     An OSError of the writer (rank 0) is a WriteFailed."""
-    with writing(cfg.output_dir):
-        return results.write(cfg, levels, comm, status=status(cfg, levels, final))
+    with writing(study.config.output_dir):
+        return results.write(study, comm, status=status(study.config, study.result, final))
 
 
 @contextmanager
@@ -284,18 +294,19 @@ def writing(folder):
 # --- one run per study folder --------------------------------------------------------------------
 
 class FolderLock:
-    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it. The kernel
-    drops it when the process ends, however it ends: a killed run leaves no stale lock. Folders made
-    for it are removed again on release when they stayed empty (a refused run leaves nothing)."""
+    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it (shared=True: a
+    shared one, which other shared holders may hold too, as a map's chunks do). The kernel drops it when the
+    process ends, however it ends: a killed run leaves no stale lock. Folders made for it are removed again
+    on release when they stayed empty (a refused run leaves nothing). `busy` ends the refusal's line."""
 
-    def __init__(self, folder, comm):
+    def __init__(self, folder, comm, shared=False, busy="; wait for it to end or choose another output folder"):
         self.folder, self.fd, self.made = Path(folder), None, []
-        refusal = self._acquire() if comm.rank == 0 else None
+        refusal = self._acquire(fcntl.LOCK_SH if shared else fcntl.LOCK_EX, busy) if comm.rank == 0 else None
         refusal = comm.bcast(refusal, root=0)
         if refusal is not None:
             raise ConfigError("output.dir", refusal)
 
-    def _acquire(self):
+    def _acquire(self, mode, busy):
         """None once the lock is held, else why not."""
         problem = files.unwritable(self.folder)  # not a folder, read-only, ...: before anything is made
         if problem is not None:
@@ -304,13 +315,12 @@ class FolderLock:
             self.made = [p for p in (*reversed(self.folder.parents), self.folder) if not p.exists()]
             self.folder.mkdir(parents=True, exist_ok=True)
             self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
-            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(self.fd, mode | fcntl.LOCK_NB)
             return None
         except OSError as err:
             self.release()
             if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
-                return f"{self.folder} is being written by another signorini run; wait for it to end or " \
-                       "choose another output folder"
+                return f"{self.folder} is being written by another signorini run{busy}"
             return f"{err.filename or self.folder}: cannot write there: {err.strerror}"
 
     def release(self):
@@ -330,6 +340,34 @@ class FolderLock:
     def __exit__(self, *exc):
         self.release()
         return False
+
+
+def try_lock(folder):
+    """An exclusive flock on `folder` (made when missing) for this process: its descriptor (closing it
+    drops the lock), or None when another run holds it."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as err:
+        os.close(fd)
+        if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+            return None
+        raise
+    return fd
+
+
+@contextmanager
+def held(folder):
+    """Within: an exclusive flock on `folder` (made when missing), waited for: what reads and rewrites
+    files that other runs write too does so one run at a time."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 # --- a closed stdout -----------------------------------------------------------------------------
@@ -410,19 +448,27 @@ def compiling_whole():
     """Within: a signal waits while FFCx compiles a form (dolfinx.jit.ffcx_jit), and interrupts the run
     right after. FFCx claims a form's entry in its cache (~/.cache/fenics) with an empty .c file and cleans
     up only after an Exception: a run interrupted while compiling left the claim, and every later run of
-    that form waited 10 s for it and failed. A compilation takes seconds."""
+    that form waited 10 s for it and failed. A compilation takes seconds. What the C compiler prints (gcc's
+    unused-variable warnings on FFCx's code) is kept off stderr unless the compilation fails."""
     from dolfinx import jit
     original = jit.ffcx_jit
 
     @functools.wraps(original)
     def ffcx_jit(*args, **kwargs):
         _signals.holding += 1
+        failure = ""
         try:
-            compiled = original(*args, **kwargs)
+            with files.stderr_in_memory() as printed:  # the C compiler's warnings (unused variables) are noise
+                try:
+                    compiled = original(*args, **kwargs)
+                except BaseException:
+                    failure = printed()
+                    raise
         except Exception:  # Ctrl-C reaches the compiler too: then the signal is the cause
             signum = _release()
             if signum is not None:
                 raise Interrupted(signum) from None
+            sys.stderr.write(failure)  # a failed compilation shows what the compiler said
             raise
         except BaseException:
             _release()

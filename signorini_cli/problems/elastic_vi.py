@@ -130,8 +130,8 @@ def contact_state(forms_, u_h, domain, bc):
 
 
 def model_differences(cfg, domain, u_eps, u_S, ds_c):
-    """||u_{ε,h} − u_{S,h}|| in L2(Ω), H1 (seminorm), L2(Γ_C), and the largest penetration max [u_{ε,h}·n − g0]_+
-    at the Γ_C nodes."""
+    """||u_{ε,h} − u_{S,h}|| in L2(Ω), H1 (seminorm), L2(Γ_C), and the largest penetration
+    max [u_{ε,h}·n − g0]_+ at the Γ_C nodes."""
     found = measure.difference_norms(u_eps, u_S)
     e = u_eps - u_S
     found["L2_gamma_c"] = np.sqrt(abs(measure.integrate(ufl.inner(e, e), ds_c)))

@@ -38,8 +38,8 @@ def measured(term, eps, alpha, dim, comm):
     """(F_h, a_h, p_h) of the P1 solution on Γ_C from the vertex values w_h = u_h·n − g0 of its facets:
     F_h = (1/ε)∫[w_h]_+^α in closed form, a_h the largest distance, across the mean normal, of the contact
     set's boundary (the zeros of the linear w_h on the facets' edges) from the centre of its bounding box, p_h
-    the largest nodal pressure λ_i/∫φ_i, λ_i = (1/ε)∫[w_h]_+^α φ_i the vertex's contact force (as the Signorini
-    inequality's pressure is measured: the vertex values (1/ε)[w_i]_+^α oscillate from vertex to vertex when ε
+    the largest nodal pressure λ_i/∫φ_i, λ_i = (1/ε)∫[w_h]_+^α φ_i the vertex's contact force (as the VI's
+    pressure is measured: the vertex values (1/ε)[w_i]_+^α oscillate from vertex to vertex when ε
     is small, measured 0.22 against Hertz's 0.075 on the 3-D Hertz base mesh at ε = 1e-5, the nodal one 0.086)."""
     w, x = term.values(term.u_h.x.array), term.points[..., :dim]
     moments = contact.moments(w, alpha) if len(w) else (np.zeros(0), np.zeros(w.shape))
@@ -73,7 +73,7 @@ def boundary_points(w, x):
 def quantities(cfg, term, eps):
     """The Hertz columns of a level (COLUMNS): a_h and p_h against Hertz's a, p0 of the measured force F_h,
     and F_h against Hertz's force of the measured a_h; relative errors |q_h − q|/q."""
-    comm, dim, R = term.u_h.function_space.mesh.comm, cfg.dimension, cfg.hertz.radius
+    comm, dim, R = term.u_h.function_space.mesh.comm, cfg.dimension, cfg.problem.hertz_radius
     force, a_h, p_h = measured(term, eps, cfg.alpha, dim, comm)
     a, p0 = closed_form(force, R, cfg.material, dim)
     f = force_of(a_h, R, cfg.material, dim)

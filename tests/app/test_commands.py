@@ -8,7 +8,7 @@ import yaml
 
 from signorini_cli import config, studies
 from signorini_cli.app import cli, commands
-from signorini_cli.record import results
+from signorini_cli.record import csvfile, results
 from conftest import BASE, merge
 
 
@@ -87,7 +87,7 @@ class Interrupt(Exception):
 
 def stop_after(cfg, k):
     def write_then_stop(levels):
-        results.write(cfg, levels)
+        results.write(studies.study_of(cfg, levels))
         if len(levels) == k:
             raise Interrupt
     with pytest.raises(Interrupt):
@@ -129,7 +129,7 @@ def test_report_not_a_study_exit_2(tmp_path, capsys):
 def test_compare_two_studies(make_config, tmp_path, capsys):
     for theta in (1, 10):
         cfg = make_config(study=f"theta{theta}", epsilon={"theta": theta})
-        results.write(cfg, studies.run_study(cfg))
+        results.write(studies.study_of(cfg, studies.run_study(cfg)))
     folders = [str(tmp_path / "results" / f"theta{t}") for t in (1, 10)]
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
@@ -144,10 +144,26 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert "--label: give one per study" in capsys.readouterr().err
 
 
+def test_compare_shows_the_rate_run_shows(make_config, tmp_path):
+    """The same study's rate in summary.csv (the verdict's) and in compare.csv: one fit, over the study's own
+    verification.fit_levels (here 2, not the default 3)."""
+    for k in (2, 3):
+        cfg = make_config(study=f"fit{k}", mesh={"refinements": [4, 8, 16]}, verification={"fit_levels": k})
+        results.write(studies.study_of(cfg, studies.run_study(cfg)))
+    folders = [tmp_path / "results" / f"fit{k}" for k in (2, 3)]
+    assert cli.main(["compare", *map(str, folders), "--output", str(tmp_path / "c")]) == cli.EXIT_OK
+    fits = {row["study"]: row["L2_fit"] for row in csvfile.read(tmp_path / "c" / "compare.csv")}
+    for k, folder in zip((2, 3), folders):
+        (l2,) = [row for row in csvfile.read(folder / "summary.csv") if row["name"] == "L2"]
+        assert fits[f"fit{k}"] == l2["observed_rate"]
+    assert fits["fit2"] != fits["fit3"]
+    assert "each study's last verification.fit_levels levels" in (tmp_path / "c" / "compare.tex").read_text()
+
+
 @pytest.mark.parametrize("labels", [["X", "X"], None])
 def test_compare_refuses_one_label_for_two_studies(make_config, tmp_path, capsys, labels):
     cfg = make_config()
-    results.write(cfg, studies.run_study(cfg))
+    results.write(studies.study_of(cfg, studies.run_study(cfg)))
     folder = str(cfg.output_dir)
     args = ["compare", folder, folder if labels is None else str(tmp_path / "results" / "t")]
     args += [f"--label={label}" for label in labels or []]

@@ -58,32 +58,37 @@ BAD = [
     pytest.param({"material": {"nu": 0.5}}, "material.nu: must be in (-1, 0.5)", id="nu-incompressible"),
     pytest.param({"material": {"nu": -1.0}}, "material.nu: must be in (-1, 0.5)", id="nu-minus-one"),
     pytest.param({"material": {"rho": 1.0}}, "material.rho: unknown key in material", id="material-unknown"),
-    pytest.param({"problem": {"f": "1"}}, "problem.f: only meaningful for the scalar problem", id="f-on-elastic"),
-    pytest.param({"problem": {"exact_solves": "signorini"}}, "problem.exact_solves: only meaningful for the scalar",
+    pytest.param({"problem": {"f": "1"}}, "problem.f: only meaningful with problem.pde: poisson", id="f-on-elastic"),
+    pytest.param({"problem": {"exact_solves": "signorini"}}, "problem.exact_solves: only meaningful with problem.pde: poisson",
                  id="exact-solves-on-elastic"),
     pytest.param({"problem": {"normal": [0, 0]}}, "problem.normal: must not be zero", id="normal-zero"),
     pytest.param({"problem": {"pde": "stokes"}}, "problem.pde: 'stokes' is not one of poisson, elasticity", id="pde"),
-    pytest.param({"study_type": "signorini", "alpha": None, "epsilon": None}, "problem.exact: study_type signorini with pde: elasticity solves the "
-                 "physical problem", id="vi-with-exact"),
+    pytest.param({"study_type": "signorini", "alpha": None, "epsilon": None},
+                 "problem.exact: study_type signorini with pde: elasticity solves the physical problem",
+                 id="vi-with-exact"),
     pytest.param({"study_type": "total_error", "problem": {"exact": None, "gap": "x - 1"}, "alpha": None,
                   "epsilon": None, "limit": {"alpha": [1], "exponent": [1]}},
-                 "study_type: total_error measures u_S − u_h: pde: elasticity has no manufactured", id="total-elastic"),
+                 "study_type: total_error measures u_S − u_h: pde: elasticity has no manufactured",
+                 id="total-elastic"),
     pytest.param({"study_type": "signorini", "problem": {"exact": None, "gap": "x - 1", "normal": [1, 0]},
                   "alpha": None, "epsilon": None}, "problem.normal: study_type signorini bounds u·n on the face's "
                  "own normal [0.0, -1.0]", id="vi-other-normal"),
-    pytest.param({"hertz": {"radius": 1.0}}, "hertz: only meaningful with problem.pde: elasticity and no "
-                 "problem.exact", id="hertz-manufactured"),
-    pytest.param({"problem": {"exact": None}, "hertz": {"radius": 0}}, "hertz.radius: must be > 0", id="hertz-radius"),
-    pytest.param({"problem": {"exact": None}, "hertz": {}}, "hertz.radius: missing required key", id="hertz-empty"),
+    pytest.param({"problem": {"hertz_radius": 1.0}}, "problem.hertz_radius: a Hertz contact is the physical "
+                 "problem", id="hertz-manufactured"),
+    pytest.param({"problem": {"exact": None, "hertz_radius": 0}}, "problem.hertz_radius: must be > 0",
+                 id="hertz-radius"),
     pytest.param({"problem": {"exact": None}, "verification": {"measures": ["hertz"]}},
-                 "verification.measures[0]: hertz needs a hertz block", id="hertz-measure"),
+                 "verification.measures[0]: hertz needs problem.hertz_radius", id="hertz-measure"),
 ]
 SCALAR_BAD = [
     pytest.param({"material": {"E": 1.0}}, "material: only meaningful with problem.pde: elasticity", id="material"),
     pytest.param({"problem": {"gap": "0"}}, "problem.gap: only meaningful with problem.pde: elasticity", id="gap"),
     pytest.param({"problem": {"normal": [0, -1]}}, "problem.normal: only meaningful with problem.pde: elasticity",
                  id="normal"),
-    pytest.param({"hertz": {"radius": 1.0}}, "hertz: only meaningful with problem.pde: elasticity", id="hertz"),
+    pytest.param({"problem": {"hertz_radius": 1.0}},
+                 "problem.hertz_radius: only meaningful with problem.pde: elasticity", id="hertz"),
+    pytest.param({"verification": {"measures": ["hertz"]}}, "verification.measures[0]: hertz measures an elastic",
+                 id="hertz-measure"),
 ]
 
 
@@ -195,7 +200,7 @@ def test_rigid_motions_span_the_stiffness_kernel(tmp_path, dim):
 
 def test_lame_plane_strain():
     """μ = E/(2(1+ν)), λ = Eν/((1+ν)(1−2ν)): E = 2.6, ν = 0.3 give μ = 1, λ = 1.5."""
-    mu, lmbda = elasticity.lame(config.settings.Material(E=2.6, nu=0.3))
+    mu, lmbda = elasticity.lame(config.pde_elasticity.Material(E=2.6, nu=0.3))
     assert mu == pytest.approx(1.0, rel=1e-15) and lmbda == pytest.approx(1.5, rel=1e-15)
 
 
