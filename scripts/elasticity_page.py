@@ -15,6 +15,7 @@ import provenance
 import signorini_cli
 from signorini_cli import config
 from signorini_cli.record import results
+from signorini_cli.report import tables
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs" / "elasticity"
@@ -103,14 +104,22 @@ def factors(rows, column):
 def falls(rows, column):
     """A sentence: whether the column falls on every level, and by which factors."""
     f = factors(rows, column)
+    if not f:
+        return "is measured on one level"
     how = "falls on every level" if all(x > 1 for x in f) else "does not fall on every level"
     return f"{how} (factors {', '.join(f'{x:.2f}' for x in f)})"
+
+
+def reported(path, folder):
+    """The study's tables and figures (pressure.png among them) as `signorini report` writes them."""
+    tables.write(results.load(folder), config.load(path, [f"output.dir={folder.parent}"]))
 
 
 def hertz_section(folders):
     path = CONFIGS / "hertz.yaml"
     status, rows, folder = run(path, RUNS / "hertz")
     folders.append(folder)
+    reported(path, folder)
     cfg = config.load(path)
     finest = cfg.mesh.sizes[-1]
     eps_rows = []
@@ -131,8 +140,8 @@ def hertz_section(folders):
            ["", f"The half-width error {falls(rows, 'half_width_err')}, the force error "
                 f"{falls(rows, 'force_err')}, the peak-pressure error {falls(rows, 'peak_pressure_err')}. "
                 "Hertz's formulas hold for a half-space (a ≪ R; here a/R ≈ "
-                f"{number(rows[-1]['half_width_hertz']):.2f}): the finite disk's own model error is below the "
-                "finest level's errors, which still fall with h.",
+                f"{number(rows[-1]['half_width_hertz']):.2f}): the errors are this model error and the "
+                "discretisation's together.",
             "", f"### ε → 0 at the finest size {finest:g}", ""] + hertz_table(eps_rows) + hertz_3d(folders)
 
 
@@ -140,6 +149,7 @@ def hertz_3d(folders):
     path = CONFIGS / "hertz-3d.yaml"
     status, rows, folder = run(path, RUNS / "hertz-3d")
     folders.append(folder)
+    reported(path, folder)
     cfg = config.load(path)
     return ["", "### 3-D: a rigid sphere pressed into a block", "",
             f"`configs/elasticity/hertz-3d.yaml` ({cfg.description}; exit status {status}): the sphere's paraboloid "
@@ -148,8 +158,7 @@ def hertz_3d(folders):
             "a = (3 F_h R/(4E*))^{1/3}, p0 = 3F_h/(2π a²), F(a_h) = 4E* a_h³/(3R); a_h the contact radius. "
             f"Radial pressure profile: `{(folder / 'pressure.png').relative_to(ROOT)}`.", ""] + hertz_table(rows) + \
            ["", f"The half-width error {falls(rows, 'half_width_err')}, the force error {falls(rows, 'force_err')}, "
-                f"the peak-pressure error {falls(rows, 'peak_pressure_err')}: the nodal pressures still swing from "
-                "node to node on these tetrahedra at this ε, and their largest is a biased estimate of p0."]
+                f"the peak-pressure error {falls(rows, 'peak_pressure_err')}."]
 
 
 # --- the Signorini limit and fields -------------------------------------------------------------------

@@ -31,7 +31,7 @@ def figure(profile, rates, width):
         ax.plot(*exact, color="black", linewidth=1.0, label="exact" if "pressure_exact" in profile[0] else "Hertz")
     ax.set_xlabel(r"distance $r$ from the contact centre" if position == "r" else r"$x$ along $\Gamma_C$")
     ax.set_ylabel(r"contact pressure $p_h$")
-    _zoom(ax, [r[position] for r in profile if r["pressure"] > 0], [r[position] for r in profile])
+    _zoom(ax, [r[position] for r in profile if r["pressure"] > 0], [r[position] for r in profile], position == "r")
     plots._legend_below(ax, ncol=2)
     plots._finish(fig, [ax])
     return fig
@@ -52,10 +52,10 @@ def exact_curve(finest, rates, level, position):
     return centre + a * t, p0 * np.sqrt(np.clip(1 - t**2, 0, None))
 
 
-def _zoom(ax, touching, everywhere):
-    """x limits around the contact set (a quarter of its extent beyond each end) when it is a small part of Γ_C."""
+def _zoom(ax, touching, everywhere, radial):
+    """x limits around the contact set (a quarter of its extent beyond each end; from r = 0 in a radial plot)."""
     if not touching:
         return
-    low, high = min(touching), max(touching)
+    low, high = 0.0 if radial else min(touching), max(touching)
     margin = (high - low) / 4 or (max(everywhere) - min(everywhere)) / 20
-    ax.set_xlim(max(low - margin, min(everywhere)), min(high + margin, max(everywhere)))
+    ax.set_xlim(0.0 if radial else max(low - margin, min(everywhere)), min(high + margin, max(everywhere)))
