@@ -11,6 +11,7 @@ DOC = "the scalar model"  # how the reference and `signorini init` describe it b
 KEYS = ("exact", "f", "g", "exact_solves", "define")  # the problem keys it takes (besides pde and method)
 SECTION = None  # no section of its own
 DEGREES = (1, 2)  # the element degrees it has
+VECTOR = False  # u is scalar
 VI = True  # it has a Signorini variational inequality (paper eq. (8)), which the ε → 0 studies solve
 
 
@@ -64,7 +65,11 @@ def _exact_solves(raw, path, exact):
 
 
 def check_config(cfg, raw):
-    """Rules across sections: none beyond its problem block."""
+    """Rules across sections: the hertz measure is elasticity's."""
+    measures = cfg.verification.measures or ()
+    if "hertz" in measures:
+        raise ConfigError(f"verification.measures[{measures.index('hertz')}]", "hertz measures an elastic Hertz "
+                                                                                "contact (pde: elasticity)")
     return cfg
 
 

@@ -16,9 +16,10 @@ def space(cfg, msh):
     return element.space(msh, cfg.element.degree)
 
 
-def errors(u_h, u_exact, h):
-    """{'L2', 'H1'}: ||u_ex − u_h||_{L2(Ω)} and the seminorm |u_ex − u_h|_{H1(Ω)}, MPI-reduced."""
-    return measure.errors(u_h, u_exact, h)
+def errors(u_h, u_exact, h, degree=None):
+    """{'L2', 'H1'}: ||u_ex − u_h||_{L2(Ω)} and the seminorm |u_ex − u_h|_{H1(Ω)}, MPI-reduced (`degree`: the
+    quadrature the data need, else the element's default for h)."""
+    return measure.errors(u_h, u_exact, h, degree)
 
 
 def exact_solution(cfg, msh, eps):
@@ -48,8 +49,9 @@ def boundary(cfg, domain, u_h, eps):
     msh = domain.mesh
     v = ufl.TestFunction(u_h.function_space)
     rule = cfg.contact_quadrature
-    degree = rule if isinstance(rule, int) else QUADRATURE_DEGREE
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
+    data_degree = domain.quadrature[0] if domain.quadrature else QUADRATURE_DEGREE  # as the data need (posed)
+    degree = rule if isinstance(rule, int) else data_degree
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": data_degree})
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags,
                        metadata={"quadrature_degree": degree})(CONTACT)
     u_exact = exact_solution(cfg, msh, eps)
@@ -105,7 +107,7 @@ class Trace:
         return contact.positive_power(self.domain.mesh.comm, self.w_h.x.array[dofs], points, beta,
                                       self.cfg.element.degree)
 
-    def energy(self, eps, contact_energy):
+    def potential(self, eps, contact_energy):
         """The potential ½∫|∇u_h|² − ∫ f u_h + (contact_energy − ∫_Γc g u_h)/ε (measure.energy)."""
         msh = self.domain.mesh
         f, g = data(self.cfg, msh, eps, self.w_exact, ufl.FacetNormal(msh))

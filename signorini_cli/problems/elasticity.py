@@ -9,8 +9,10 @@ the symmetric gradient. With the manufactured data the two Γ_C conditions add u
     ∫ σ(u_h):ε(v) + (1/ε)∫_Γc [w_h]_+^α (v·n)
         = ∫ f·v + ∫_Γc σ(u_ex)n·v + (1/ε)∫_Γc [w_ex]_+^α (v·n),
 
-w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine), so contact.ContactTerm integrates the
-penalty exactly, and the kinked data [w_ex]_+^α by its adaptive rules when n is one vector on all of Γ_C."""
+w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine) or, in 2-D, quadratic (P2, g0 at most
+quadratic), so contact.ContactTerm integrates the penalty exactly (P2: each segment cut at the zeros of the
+quadratic, as for the scalar problem), and the kinked data [w_ex]_+^α by its adaptive rules when n is one
+vector on all of Γ_C."""
 from contextlib import ExitStack
 
 import numpy as np
@@ -27,8 +29,8 @@ from .forms import QUADRATURE_DEGREE
 
 
 def space(cfg, msh):
-    """P1 vector Lagrange, d components."""
-    return element.space(msh, 1, shape=(msh.geometry.dim,))
+    """Vector Lagrange of the configured degree (P1 or P2), d components."""
+    return element.space(msh, cfg.element.degree, shape=(msh.geometry.dim,))
 
 
 def lame(material):
@@ -61,15 +63,14 @@ def gap(cfg, x, functions):
 
 class Trace:
     """The elastic solution on Γ_C, what the measures read: w = u·n − g0 of u_h and u_ex (UFL; w_ex also in
-    numpy, `exact`), the energy seminorm a(e, e)^(1/2) of e = u_ex − u_h (Lemma 3.1's analogue), and from the
-    vertex values of w_h (`term`: a ContactTerm that reads them) the penetration, the contact set and
-    ∫[w_h]_+^beta, exact for P1."""
+    numpy, `exact`), a(e, e) of an error e (`energy`, UFL), and from the facet dof values of w_h (`term`: a
+    ContactTerm that reads them) the penetration, the contact set and ∫[w_h]_+^beta, exact for P1 and P2."""
 
     def __init__(self, cfg, w_h, w_exact, u_exact, energy, term, domain):
         self.cfg, self.w_h, self.w_exact, self.u_exact = cfg, w_h, w_exact, u_exact
-        self.energy_density, self.term, self.domain = energy, term, domain
+        self.energy, self.term, self.domain = energy, term, domain
 
-    def vertex_values(self):
+    def dof_values(self):
         return self.term.values(self.term.u_h.x.array)
 
     def exact(self, eps_value):
@@ -86,25 +87,29 @@ class Trace:
         return evaluate
 
     def contact_variable(self, level):
-        """(points, w_h, w_ex, seminorm) the Γ_C errors read: the facets' vertices, w_h's vertex values (as
-        the solve's contact term has them), w_ex(facets, x) and the energy seminorm of the error."""
-        u_h = self.term.u_h
-        degree = measure.error_degree(u_h.function_space, level.h)
-        dx = ufl.Measure("dx", domain=u_h.function_space.mesh, metadata={"quadrature_degree": degree})
-        a_ee = measure.integrate(self.energy_density(self.u_exact - u_h), dx)
-        return self.term.points, self.vertex_values(), self.exact(level.eps), abs(a_ee) ** 0.5
+        """(points, w_h, w_ex, seminorm) the Γ_C errors read: the facets' vertices, w_h's facet dof values (as
+        the solve's contact term has them), w_ex(facets, x) and the energy seminorm a(e, e)^(1/2) of the error."""
+        u_h, msh = self.term.u_h, self.domain.mesh
+        quadrature = self.domain.quadrature
+        degree = quadrature[1] if quadrature else measure.error_degree(u_h.function_space, level.h)
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
+        a_ee = measure.integrate(self.energy(self.u_exact - u_h), dx)
+        vertices = self.term.points[:, :msh.topology.dim]
+        return vertices, self.dof_values(), self.exact(level.eps), abs(a_ee) ** 0.5
 
     def penetration(self):
-        return measure.vertex_penetration(self.domain.mesh.comm, self.vertex_values())
+        return measure.vertex_penetration(self.domain.mesh.comm, self.dof_values(), self.cfg.element.degree)
 
     def contact_measure(self):
-        return measure.vertex_contact_measure(self.domain.mesh.comm, self.vertex_values(), self.term.points)
+        return measure.vertex_contact_measure(self.domain.mesh.comm, self.dof_values(), self.term.points,
+                                              self.cfg.element.degree)
 
     def positive_power(self, beta):
-        """∫_Γc [w_h]_+^beta from the vertex values, exact for P1 (contact.positive_power)."""
-        return contact.positive_power(self.domain.mesh.comm, self.vertex_values(), self.term.points, beta)
+        """∫_Γc [w_h]_+^beta from the facet dof values, exact (contact.positive_power)."""
+        return contact.positive_power(self.domain.mesh.comm, self.dof_values(), self.term.points, beta,
+                                      self.cfg.element.degree)
 
-    def energy(self, eps, contact_energy):
+    def potential(self, eps, contact_energy):
         """No potential is measured for elasticity."""
         return None
 
@@ -117,8 +122,9 @@ def boundary(cfg, domain, u_h, eps):
     v = ufl.TestFunction(V)
     mu, lmbda = lame(cfg.material)
     rule = cfg.contact_quadrature
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
-    ds_c = domain.ds_c(rule if isinstance(rule, int) else QUADRATURE_DEGREE)
+    data_degree = domain.quadrature[0] if domain.quadrature else QUADRATURE_DEGREE  # as the data need (posed)
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": data_degree})
+    ds_c = domain.ds_c(rule if isinstance(rule, int) else data_degree)
     n = ufl.as_vector(cfg.problem.normal) if cfg.problem.normal is not None else ufl.FacetNormal(msh)
     x = ufl.SpatialCoordinate(msh)
     u_ex = exact_solution(cfg, msh, eps) if cfg.problem.exact is not None else None
@@ -130,13 +136,13 @@ def boundary(cfg, domain, u_h, eps):
     def term(penalty, kinked):
         return contact_term(cfg, domain, u_h, eps, penalty, kinked)
 
-    stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # P1: exact at degree 0
+    stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # UFL's degree 2(k−1): exact
     energy = lambda e: ufl.inner(sigma(e, mu, lmbda), strain(e))  # noqa: E731
     measuring = contact_term(cfg, domain, u_h, eps, False, False, measuring=True)
     trace = Trace(cfg, w_h, w_ex, u_ex, energy, measuring, domain)
     return forms.Boundary(u_h, w_h, w_ex, ufl.dot(v, n), lambda u: ufl.dot(ufl.dot(sigma(u, mu, lmbda), n), n),
                           traction, 0, ds_c, fem.Constant(msh, domain.h), term, stiffness,
-                          load_form(u_ex, v, mu, lmbda, dx), u_ex, trace, domain, rigid_motions(V))
+                          load_form(u_ex, v, mu, lmbda, dx), u_ex, trace, domain, rigid_motions(V), gap=trace)
 
 
 def load_form(u_ex, v, mu, lmbda, dx):
@@ -220,9 +226,10 @@ def dirichlet_condition(V, domain, u_exact):
     return compliance.dirichlet_condition(V, domain, u_exact)
 
 
-def errors(u_h, u_exact, h):
-    """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (seminorm)} of the vector error."""
-    return measure.errors(u_h, u_exact, h)
+def errors(u_h, u_exact, h, degree=None):
+    """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (seminorm)} of the vector error (`degree` as
+    compliance.errors')."""
+    return measure.errors(u_h, u_exact, h, degree)
 
 
 def rigid_motions(V):
@@ -240,3 +247,59 @@ def rigid_motions(V):
             b[d + k][:, i], b[d + k][:, j] = -x[:, j], x[:, i]
     la.orthonormalize(basis)
     return PETSc.NullSpace().create(vectors=basis)
+
+
+# --- fields for ParaView: stress, von Mises, contact pressure ------------------------------------------
+
+def stress(cfg, u):
+    """σ(u) (UFL) with the config's material."""
+    mu, lmbda = lame(cfg.material)
+    return sigma(u, mu, lmbda)
+
+
+def von_mises(cfg, u):
+    """(3/2 s:s)^(1/2) of the deviator s of the 3×3 stress; in 2-D plane strain σ_zz = λ div u."""
+    mu, lmbda = lame(cfg.material)
+    s = sigma(u, mu, lmbda)
+    if len(u) == 2:
+        s = ufl.as_matrix([[s[0, 0], s[0, 1], 0], [s[1, 0], s[1, 1], 0], [0, 0, lmbda * ufl.div(u)]])
+    dev = ufl.dev(s)
+    return ufl.sqrt(1.5 * ufl.inner(dev, dev))
+
+
+def numpy_exact(cfg):
+    """u_ex(points, eps) in numpy, points (..., 3) -> (..., d)."""
+    def evaluate(points, eps_value):
+        coords = np.moveaxis(points, -1, 0)
+        variables = dict(zip(("x", "y", "z"), coords), eps=eps_value)
+        functions = expressions.numpy_functions()
+        return np.stack([np.broadcast_to(c(variables, functions), coords[0].shape) for c in cfg.problem.exact], -1)
+    return evaluate
+
+
+def pressure_values(cfg, term, eps_value, u_exact=False):
+    """(1/ε)[w]_+^α at the Γ_C facets' vertices (facets, d): of w_h = u_h·n − g0, or of w_ex with `u_exact`
+    (the compliance law's pressure σ_n = −(1/ε)[w]_+^α without data, the manufactured one's ĝ_n aside)."""
+    if u_exact:
+        u = numpy_exact(cfg)(term.points, eps_value)
+        w = np.einsum("fvk,fk->fv", u, term.normal) - term.gap
+    else:
+        w = term.values(term.u_h.x.array)
+    return np.maximum(w, 0.0) ** cfg.alpha / eps_value
+
+
+def on_vertices(term, values):
+    """(sums, counts): `values` (facets, vertices) at the Γ_C facets' vertices summed per vertex, and how many
+    facets each vertex has, as local arrays of the scalar P1 space (ghosts included, owned facets summed across
+    ranks): the space and its arrays for fields and nodal pressures."""
+    from dolfinx.cpp.la import ScatterMode
+    Q, blocks = term.u_h.function_space.sub(0).collapse()
+    scalar_of = np.empty(len(term.u_h.x.array) // term.bs, dtype=np.int32)
+    scalar_of[np.asarray(blocks) // term.bs] = np.arange(len(blocks))
+    sums, counts = fem.Function(Q), fem.Function(Q)
+    np.add.at(sums.x.array, scalar_of[term.dofs], values)
+    np.add.at(counts.x.array, scalar_of[term.dofs], 1.0)
+    for f in (sums, counts):
+        f.x.scatter_reverse(ScatterMode.add)
+        f.x.scatter_forward()
+    return sums, counts

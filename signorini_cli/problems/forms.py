@@ -29,6 +29,7 @@ class Forms:
     contact: object = None  # contact.ContactTerm: Γ_C terms integrated beside UFL (contact_quadrature exact, vertex)
     near_nullspace: object = None  # PETSc.NullSpace the AMG preconditioner coarsens against (elasticity: rigid motions)
     trace: object = None  # the problem's Γ_C trace the measures read (w_h, w_ex, penetration, contact set ...)
+    gap: object = None  # the trace again where the contact variable is not u_h itself (elasticity: u_h·n − g0)
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,7 @@ class Boundary:
     trace: object
     domain: object
     near_nullspace: object = None
+    gap: object = None  # the trace where w is not u_h itself (Forms.gap)
 
 
 def on_mesh(value, msh):
@@ -82,4 +84,4 @@ def assemble(boundary, contact_form, term, nonlinear, load, linear=None):
     J_varying = ufl.derivative(contact_form, u_h, du) if nonlinear else None
     split = Split(F_fixed=-load, J_fixed=ufl.derivative(stiffness, u_h, du), F_varying=varying, J_varying=J_varying)
     return Forms(F, ufl.derivative(F, u_h, du), boundary.u_exact, boundary.ds_c, split, term,
-                 boundary.near_nullspace, boundary.trace)
+                 boundary.near_nullspace, boundary.trace, boundary.gap)

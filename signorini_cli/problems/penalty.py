@@ -69,7 +69,7 @@ def quantities(cfg, forms, eps, wanted):
     if "contact_force" in wanted:
         found["contact_force"] = trace.positive_power(cfg.alpha) / eps
     if "energy" in wanted:
-        energy = trace.energy(eps, trace.positive_power(cfg.alpha + 1) / (cfg.alpha + 1))
+        energy = trace.potential(eps, trace.positive_power(cfg.alpha + 1) / (cfg.alpha + 1))
         if energy is not None:
             found["energy"] = energy
     return found

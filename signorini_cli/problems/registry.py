@@ -4,14 +4,15 @@ errors) with the method that enforces its contact condition; a new PDE or method
 import contextlib
 import dataclasses
 
-from . import compliance, elasticity, nitsche, penalty, posed, vi
+from ..meshing import meshes
+from . import compliance, elastic_vi, elasticity, element, nitsche, penalty, posed, vi
 
 # cfg.problem.pde -> the problem's module
 PROBLEMS = {"poisson": compliance, "elasticity": elasticity}
 # (pde, method) -> the method's module, for the pairs that exist
 METHODS = {("poisson", "penalty"): penalty, ("elasticity", "penalty"): penalty, ("poisson", "nitsche"): nitsche}
 # the problem's ε → 0 limit solved as a variational inequality (paper eq. (8)), by pde
-LIMITS = {"poisson": vi}
+LIMITS = {"poisson": vi, "elasticity": elastic_vi}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,8 +39,8 @@ class Discretisation:
     def dirichlet_condition(self, V, domain, u_exact):
         return self.problem.dirichlet_condition(V, domain, u_exact)
 
-    def errors(self, u_h, u_exact, h):
-        return self.problem.errors(u_h, u_exact, h)
+    def errors(self, u_h, u_exact, h, degree=None):
+        return self.problem.errors(u_h, u_exact, h, degree)
 
 
 def problem_of(cfg, limit=False):
@@ -64,19 +65,20 @@ def expected(cfg, norm):
 POSED = {"poisson": posed.check, "elasticity": posed.check_elastic}
 
 
-_passed = None  # within checked_once(): the (mesh family, data) whose data passed on the family's cells
+_passed = None  # within checked_once(): (mesh family, data) -> the data's Profile on the family's coarsest mesh
 
 
 @contextlib.contextmanager
 def checked_once():
-    """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points
-    once per mesh family (what a data check at interior points can find there, it finds on any level),
-    at the vertices and on Γ_C on every level (where a finer level's new vertices may meet a singularity)."""
+    """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points, their
+    load for settling and their Profile taken, once per mesh family, on its coarsest mesh (what a check at
+    interior points can find there, it finds on any level); at the vertices and on Γ_C on every level (where
+    a finer level's new vertices may meet a singularity)."""
     global _passed
     if _passed is not None:
         yield
         return
-    _passed = set()
+    _passed = {}
     try:
         yield
     finally:
@@ -85,12 +87,18 @@ def checked_once():
 
 def check_posed(cfg, domain, u_exact, eps_value):
     """ConfigError (on every rank) when the level's problem is not posed right: every path that solves calls
-    it before its first solve on a mesh (refinement levels, map points, the VI, ε-sweeps, total error)."""
+    it before its first solve on a mesh (refinement levels, map points, the VI, ε-sweeps, total error).
+    Returns the level's quadrature degrees (data, errors) the data need (posed.Profile.degrees)."""
     key = (_family(cfg), _data(cfg.problem, eps_value))
-    cells = _passed is None or key not in _passed
-    POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, cells=cells)
+    coarsest = None
+    if _passed is None or key not in _passed:  # the cells' checks: on the family's coarsest mesh
+        first = cfg.mesh.levels[0]
+        coarsest = domain if domain.n == first else meshes.build(cfg.mesh, cfg.contact, first, domain.mesh.comm)
+    found = POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, coarsest=coarsest)
     if _passed is not None:
-        _passed.add(key)
+        found = _passed.setdefault(key, found)
+    low = (compliance.QUADRATURE_DEGREE, element.error_degree(cfg.element.degree, domain.h))
+    return low if found is None else found.degrees(domain.h, *low)
 
 
 def _family(cfg):

@@ -3,12 +3,13 @@ errors against a reference solution for data-only scenes; written as Level.extra
 from mpi4py import MPI
 
 from ..config import names
+from ..problems import hertz, profile
 from ..problems.registry import method_of
 from . import reference
 
 CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
 NEEDS_CONTACT = tuple(m.key for m in names.MEASURES if m.contact)
-QUANTITIES = tuple(m.key for m in names.MEASURES if m.kind == "quantity")  # no rates: values, not errors
+QUANTITIES = tuple(c for m in names.MEASURES if m.kind == "quantity" for c in m.columns)  # values, no rates
 REFERENCE_ERRORS = ("ref_err_L2", "ref_err_H1")  # ||u_ref(k-1) - u_ref(k)||: how exact each reference is
 
 
@@ -51,6 +52,8 @@ class Verifier:
         if "diff" in wanted and self.previous is not None and converged:
             errors.update(reference.successive_differences(self.previous, u_h))
         quantities = self._quantities(level, forms, wanted)
+        if has_contact and converged:
+            level.profile = profile.rows(self.cfg, domain, u_h, forms, level.eps, level.index)
         level.errors.update(errors)
         self._columns(level, errors, quantities, wanted, has_contact)
         if "diff" in wanted and converged:  # kept for the successive differences only: a whole level's mesh
@@ -72,6 +75,8 @@ class Verifier:
         if "penetration" in wanted:
             found["penetration"] = trace.penetration()
         found.update(method_of(self.cfg).quantities(self.cfg, forms, level.eps, wanted))
+        if "hertz" in wanted:  # problem.hertz_radius: half-width and peak pressure against Hertz's (P1)
+            found.update(hertz.quantities(self.cfg, forms.trace.term, level.eps))
         return found
 
     def _columns(self, level, errors, quantities, wanted, has_contact):
