@@ -36,6 +36,9 @@ class Discretisation:
         """The level's Forms: the problem's operator and data with the method's contact term."""
         return self.method.forms(cfg, self.problem.boundary(cfg, domain, u_h, eps), eps)
 
+    def exact_solution(self, cfg, msh, eps):
+        return self.problem.exact_solution(cfg, msh, eps)
+
     def dirichlet_condition(self, V, domain, u_exact):
         return self.problem.dirichlet_condition(V, domain, u_exact)
 
