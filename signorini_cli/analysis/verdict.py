@@ -279,17 +279,6 @@ def markdown_lines(summary):
     return lines
 
 
-def latex_lines(summary):
-    """The verdicts under a LaTeX rate table: a tabular of norm, observed rate, interval, proven, verdict."""
-    lines = ["", r"\begin{tabular}{lrrrl}", r"\hline", r"norm & observed & interval & proven & verdict \\",
-             r"\hline"]
-    for v in summary.norms:
-        proven = "--" if v.proven is None else f"{v.proven:g}"
-        lines.append(rf"\texttt{{{v.norm.replace('_', chr(92) + '_')}}} & {_rate(v.observed)} & {interval(v)} & "
-                     rf"{proven} & {v.verdict} \\")
-    return lines + [r"\hline", r"\end{tabular}"]
-
-
 def _quantity_row(q):
     g = q.estimate
     if g is None:

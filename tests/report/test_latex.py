@@ -63,8 +63,9 @@ def test_text_cell_escaped_in_latex_and_markdown():
 @pytest.mark.fast
 def test_caption_from_the_study_fields():
     caption = tables.caption_of("demo_1", DEMO)
-    assert caption == (r"Study demo\_1: $d = 2$, $\alpha = 2$, $\varepsilon = h$, exact solution "
-                       r"$u = \sin(2 \pi x) (1 - y)^{2}$, $\Gamma_C$: \texttt{bottom}")
+    assert caption == (r"Errors and observed rates: $d = 2$, $\alpha = 2$, $\varepsilon = h$, exact solution "
+                       r"$u = \sin(2 \pi x) (1 - y)^{2}$, contact boundary $\Gamma_C$: bottom")  # no slug by default
+    assert tables.caption_of("demo_1", DEMO, slug=True).startswith(r"Study demo\_1: $d = 2$")
     data = config.load(Path(__file__).resolve().parents[2] / "configs" / "paper" / "data-push-constant-eps.yaml")
     assert "data $f = " in tables.caption_of("d", data) and r"$\varepsilon = " in tables.caption_of("d", data)
 
