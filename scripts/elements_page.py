@@ -15,8 +15,7 @@ from signorini_cli.record import results
 COLUMNS = ("N", "h", "dofs", "newton_its", "L2", "rate_L2", "H1", "rate_H1", "pos_gc", "rate_pos_gc",
            "contact_quadrature")
 NORMS = ("L2", "H1", "pos_gc")
-P2_RULE = config.settings.P2_CONTACT_QUADRATURE
-FIT_LEVELS = 3  # the rate fitted over the last three levels, as the study's verdict does by default
+P2_RULE = config.schema.P2_CONTACT_QUADRATURE
 
 
 def main(argv=None):
@@ -62,7 +61,7 @@ def study_section(label, path, cfg, rows):
         "",
         markdown(rows, COLUMNS),
         "",
-        f"Fitted over the last {FIT_LEVELS} levels: " + ", ".join(f"{n} {cells.rate(fits[n])}" for n in NORMS)
+        f"Fitted over the last {rates.FIT_LEVELS} levels: " + ", ".join(f"{n} {cells.rate(fits[n])}" for n in NORMS)
         + f"; all levels converged: {cells.yes(all(r['converged'] for r in rows))}.",
     ])
 
@@ -133,7 +132,7 @@ def signorini_section(p1, p2, compliance1, compliance2):
         "",
         markdown(rows2, columns),
         "",
-        f"Fitted over the last {FIT_LEVELS} levels: P1 L2 {cells.rate(fit1['L2'])}, H1 {cells.rate(fit1['H1'])}; P2 L2 "
+        f"Fitted over the last {rates.FIT_LEVELS} levels: P1 L2 {cells.rate(fit1['L2'])}, H1 {cells.rate(fit1['H1'])}; P2 L2 "
         f"{cells.rate(fit2['L2'])}, H1 {cells.rate(fit2['H1'])}, against the heuristic 1/α = {1 / cfg.alpha:.2f} "
         f"of the model error. At N = {last2['N']} P2's L2 error is {percent(last2['L2'], last1['L2'])} of P1's and its H1 "
         f"error {percent(last2['H1'], last1['H1'])}, where with the manufactured compliance solution above it is "
@@ -149,7 +148,7 @@ def percent(part, whole):
 
 def fit(rows, norm):
     return rates.fitted([r["h"] for r in rows], [r[norm] for r in rows], [r["converged"] for r in rows],
-                        FIT_LEVELS)
+                        rates.FIT_LEVELS)
 
 
 def keeps(fits, k):

@@ -6,11 +6,11 @@ from pathlib import Path
 
 from .. import config, studies
 from ..analysis import verdict
-from ..analysis.rates import fitted
+from ..analysis import rates
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
 from ..record import csvfile
-from . import captions, latex
+from . import captions, latex, verdicts
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
 TERMINAL_WIDTH = 120  # columns of a terminal table; wider ones wrap into blocks
@@ -19,7 +19,6 @@ ALWAYS = ("L2", "H1", "L2_ref", "H1_ref")  # in the paper columns whether the pa
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
 FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})
-FIT_LEVELS = 3  # fitted slopes without a config: verification.fit_levels' default
 CONSTANT = ("N", "levels", "converged", "newton_its", "points")  # one value on every row: said in the caption
 PARAMETERS = ("alpha", "p")  # a study's parameters: 1, 1.5, not 1.000e+00
 NAMING = ("study", "solver")  # a sub-study's name and kind: α and p say both (a table of an α × p sweep)
@@ -27,11 +26,6 @@ SPACES = {"L2": "$L^2$", "H1": "$H^1$", "L2_gc": r"$L^2(\Gamma_C)$", "L2_gamma_c
           "pos_gc": r"$L^{\alpha+1}(\Gamma_C)$", "eps_max": r"$\varepsilon_{\max}$",
           "eps_min": r"$\varepsilon_{\min}$"}
 RATE_DEFINITION = r"rate: $\log(e_k/e_{k-1})/\log(h_k/h_{k-1})$ between successive levels"
-
-
-def fitted_slope(h, e, k=FIT_LEVELS):
-    """Least-squares slope of log e against log h over the last k points (None with fewer than 2)."""
-    return fitted(list(h), list(e), [True] * len(e), k)
 
 
 # --- which columns a table shows --------------------------------------------------------------
@@ -151,7 +145,7 @@ def _format(column, value):
     return str(value)
 
 
-def comparison(studies, fit_levels=FIT_LEVELS):
+def comparison(studies, fit_levels=rates.FIT_LEVELS):
     """One row per study ({label: rows}): levels, finest converged h, total wall time, per norm the
     finest error (<norm>_finest) and the slope fitted over the last `fit_levels` levels (<norm>_fit)."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
@@ -163,12 +157,12 @@ def comparison(studies, fit_levels=FIT_LEVELS):
         for norm in all_norms:
             points = [(row["h"], row[norm]) for row in ok if row.get(norm)]
             row[f"{norm}_finest"] = points[-1][1] if points else None
-            row[f"{norm}_fit"] = fitted_slope(*zip(*points), k=fit_levels) if len(points) > 1 else None
+            row[f"{norm}_fit"] = rates.slope(*zip(*points), k=fit_levels) if points else None
         table.append(row)
     return table, all_norms
 
 
-def summary_table(studies, fit_levels=FIT_LEVELS):
+def summary_table(studies, fit_levels=rates.FIT_LEVELS):
     """The comparison for the terminal: one line per study, each norm's finest error and fitted slope
     under its name (wrapped into blocks at TERMINAL_WIDTH)."""
     table, all_norms = comparison(studies, fit_levels)
@@ -181,7 +175,7 @@ def summary_table(studies, fit_levels=FIT_LEVELS):
     return "\n".join(_aligned(groups))
 
 
-def write_comparison(studies, folder, fit_levels=FIT_LEVELS):
+def write_comparison(studies, folder, fit_levels=rates.FIT_LEVELS):
     """compare.csv, compare.md and compare.tex (fitting a page) of `studies` in `folder`; the paths."""
     table, all_norms = comparison(studies, fit_levels)
     folder = Path(folder)
@@ -468,18 +462,18 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
         path.parent.mkdir(parents=True, exist_ok=True)
         how = (chosen, proven) if table.paper else ("all", {})
         part = "" if table.paper and "/" not in table.name else f", table {table.name}"
-        verdicts = [] if summary is None or table is not shown[0] else verdict.markdown_lines(summary)
+        under = [] if summary is None or table is not shown[0] else verdicts.markdown_lines(summary)
         comment = (description + part).replace("--", "- -")  # "-->" in a description would end the comment
         written.append(path.with_name(path.name + ".md"))
         written[-1].write_text("\n".join([f"<!-- {comment} -->\n" + markdown_table(table.rows, digits, *how)
-                                          .rstrip("\n")] + verdicts) + "\n")
+                                          .rstrip("\n")] + under) + "\n")
         key = latex.label(study.name, table.name if part else "", suffix)
         written.append(path.with_name(path.name + ".tex"))
         written[-1].write_text(latex_table(table.rows, digits, _table_caption(study, cfg, table), *how, key=key,
                                            short=not table.paper))
     if summary is not None and summary.norms:
         written.append(folder / f"verdict{suffix}.tex")
-        written[-1].write_text(verdict_table(summary, latex.label(study.name, "verdict", suffix)))
+        written[-1].write_text(verdicts.latex_table(summary, latex.label(study.name, "verdict", suffix)))
     if plots:
         shown_norms = choose(study.rows, chosen, proven)[1] if chosen != "paper" and study.rows else None
         written += draw(figures, study, cfg, folder, proven, figure, shown_norms, suffix)
@@ -495,21 +489,6 @@ def _table_caption(study, cfg, table):
     return caption_of(study.name, sub.get(table.name.split("/")[0], cfg), _variational(table.rows))
 
 
-def verdict_table(summary, key):
-    """verdict.tex: one booktabs float, per norm the observed rate with its interval, the proven rate, the
-    class and the paper's result that proves it."""
-    rows = [[_header(v.norm), _rate(v.observed, "--", latex.rate),
-             "--" if v.lo is None else f"$[{v.lo:.2f}, {v.hi:.2f}]$",
-             "--" if v.proven is None else f"${latex.constant(v.proven)}$", latex.escape(v.verdict),
-             latex.escape(v.reference) or "--"] for v in summary.norms]
-    cells = [(head, [row[k] for row in rows]) for k, head in enumerate(
-        ["norm", "observed", "interval", "proven", "verdict", "result"])]
-    caption = (f"Observed rates fitted over the last {summary.fit_levels} levels (slope of $\\log e$ against "
-               "$\\log h$) with their intervals, against the rates the paper proves")
-    return "% verdict written by signorini; needs \\usepackage{booktabs}\n" + latex.table(
-        cells, [], caption + ".", key, len(rows), align="lrrrll")
-
-
 def _variational(rows):
     """Whether a table's levels solve the Signorini variational inequality (ε = 0 on every level)."""
     return bool(rows) and all(row.get("epsilon") == 0 for row in rows)
@@ -518,7 +497,7 @@ def _variational(rows):
 def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""):
     """The study type's figures, each by its kind (convergence figures of the norms `shown`, all if None,
     their names ending in `suffix`); the paths written."""
-    fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
+    fit_levels = cfg.verification.fit_levels if cfg is not None else rates.FIT_LEVELS
     figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))
     written = []
     for fig in figures:

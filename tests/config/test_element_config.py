@@ -14,7 +14,7 @@ def test_default_is_p1_with_the_exact_contact_rule(make_config):
 
 def test_p2_takes_the_gauss_rule_by_default(make_config):
     cfg = make_config(element={"degree": 2})
-    assert cfg.contact_quadrature == config.settings.P2_CONTACT_QUADRATURE
+    assert cfg.contact_quadrature == config.schema.P2_CONTACT_QUADRATURE
     assert config.fingerprint(config.from_dict(config.to_dict(cfg))) == config.fingerprint(cfg)  # reads back
     assert make_config(element={"degree": 2}, contact_quadrature=12).contact_quadrature == 12
 

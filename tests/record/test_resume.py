@@ -30,7 +30,7 @@ def test_read_levels_round_trip(make_config):
     # from 0 (strategy plain) N=4 converges in 4 Newton steps, N=16 needs 5: a converged and a failed
     # level come back
     cfg = make_config(mesh={"refinements": [4, 16]}, solver={"max_it": 4, "strategy": "plain"})
-    levels = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    levels = studies.run_study(cfg, on_level=lambda done: results.write(studies.study_of(cfg, done)))
     assert [lv.outcome.converged for lv in levels] == [True, False]
     assert resume.read_levels(cfg) == levels
 
@@ -138,7 +138,7 @@ def test_resume_two_ranks(tmp_path):
     cfg = config.load(paths["cut"])
 
     def stop_after_two(levels):
-        results.write(cfg, levels, status=f"interrupted at level {len(levels)}")
+        results.write(studies.study_of(cfg, levels), status=f"interrupted at level {len(levels)}")
         if len(levels) == 2:
             raise Stop
     with pytest.raises(Stop):
@@ -225,7 +225,7 @@ def test_resume_reads_levels_by_index_and_keeps_every_row(tmp_path):
     cfg = config.load(path)
     levels = resume.read_levels(cfg)
     assert [lv.index for lv in levels] == [0, 1] and [lv.n for lv in levels] == [4, 8]
-    results.write(cfg, levels[:1])  # as a run stopped after level 0 leaves it
+    results.write(studies.study_of(cfg, levels[:1]))  # as a run stopped after level 0 leaves it
     assert cli.main(["run", path, "--resume", "--quiet"]) == cli.EXIT_OK
     assert same_table(rows(tmp_path), complete)
 
