@@ -537,9 +537,13 @@ def proven_rates(cfg):
     return {norm: rate for norm, rate in found.items() if rate is not None}
 
 
-def title(study, cfg=None):
-    """A one-line plot title: the study type's, or the study name alone."""
-    return studies.of(study.study_type).title(cfg, study.name) if cfg is not None else study.name
+def title(study, cfg=None, slug=False):
+    """A one-line plot title: the study type's without the study's name unless `slug` (no config: the name
+    only when `slug`)."""
+    if cfg is None:
+        return study.name if slug else ""
+    text = studies.of(study.study_type).title(cfg, study.name)
+    return text if slug else text.removeprefix(f"{study.name}: ")
 
 
 def format_rows(rows):

@@ -57,7 +57,8 @@ def test_triangles_proven_marked_apart_from_fitted():
     proven, fitted = ax.patches  # drawn in the norms' order: L2, H1
     assert proven.get_facecolor()[3] == 0 and proven.get_linestyle() != "solid"  # open, dashed
     assert fitted.get_facecolor()[3] > 0 and fitted.get_linestyle() == "-"  # filled, solid
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["L²  (fit 1.90)", "H¹  (fit 0.97)"]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [r"$\|u-u_h\|_{L^2}$  (fit 1.90)",
+                                                                     r"$|u-u_h|_{H^1}$  (fit 0.97)"]
 
 
 def test_plot_slopes_read_fit_levels():
@@ -66,8 +67,8 @@ def test_plot_slopes_read_fit_levels():
     rows[-1]["L2"] = rows[-2]["L2"] * 0.5
     with plots.styled():
         two, four = (plots.convergence(rows, fit_levels=k) for k in (2, 4))
-    assert two.axes[0].get_legend().get_texts()[0].get_text() == "L²  (fit 1.00)"
-    assert four.axes[0].get_legend().get_texts()[0].get_text() != "L²  (fit 1.00)"
+    assert two.axes[0].get_legend().get_texts()[0].get_text() == r"$\|u-u_h\|_{L^2}$  (fit 1.00)"
+    assert four.axes[0].get_legend().get_texts()[0].get_text() != r"$\|u-u_h\|_{L^2}$  (fit 1.00)"
 
 
 def test_many_norms_two_per_panel_and_per_norm_figures(tmp_path):
@@ -81,7 +82,7 @@ def test_many_norms_two_per_panel_and_per_norm_figures(tmp_path):
 
 def page_checks(fig, width_pt):
     """The figure is width_pt wide, every text at least 8 pt, no legend overlapping an axes' data area."""
-    assert fig.get_figwidth() * 72 == pytest.approx(width_pt)
+    assert fig.get_figwidth() * 72.27 == pytest.approx(width_pt)  # TeX points: \includegraphics at 100 %
     renderer = FigureCanvasAgg(fig).get_renderer()
     fig.draw(renderer)
     sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_text()]
@@ -189,7 +190,7 @@ def test_single_level_study_plots_without_triangles(tmp_path):
     with plots.styled():
         fig = plots.convergence(rows)
     assert triangle_labels(fig.axes[0]) == [] and not fig.axes[0].patches
-    assert fig.axes[0].get_legend().get_texts()[0].get_text() == "L²  (one level)"
+    assert fig.axes[0].get_legend().get_texts()[0].get_text() == r"$\|u-u_h\|_{L^2}$  (one level)"
     assert sorted(p.name for p in plots.write_all(rows, tmp_path)) == sorted(
         f"{n}.{ext}" for n in ("convergence", "work_precision", "newton") for ext in ("pdf", "png"))
 

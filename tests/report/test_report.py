@@ -227,7 +227,7 @@ def test_columns_choose_the_plotted_norms(tmp_path, monkeypatch):
     study = results.Study("demo", tmp_path, demo_like(3))
     tables.write(study, DEMO, columns=["N", "H1"], suffix="-N-H1")
     assert (tmp_path / "rates-N-H1.tex").exists() and not (tmp_path / "rates.tex").exists()
-    assert drawn == [["H¹"]]
+    assert drawn == [[r"$|u-u_h|_{H^1}$"]]
 
 
 @pytest.mark.fast
