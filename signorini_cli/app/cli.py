@@ -25,9 +25,9 @@ try:  # Ctrl-C while the modules load (MPI starts with commands' imports): one l
 
     from mpi4py import MPI
 
-    from .. import __version__, config
+    from .. import config
     from ..config import ConfigError
-    from . import commands, guard
+    from . import commands, guard, start
     from .commands import EXIT_BAD_INPUT, EXIT_EXPECTATION_NOT_MET, EXIT_NOT_CONVERGED, EXIT_OK  # noqa: F401
 except KeyboardInterrupt:
     print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
@@ -108,14 +108,13 @@ def _add_report_commands(sub):
 
 
 class _Version(argparse.Action):
-    """--version: the package's and dolfinx's versions (dolfinx imported only when asked)."""
+    """--version: the package's and dolfinx's versions (start.version_line: dolfinx is not imported)."""
 
     def __init__(self, option_strings, dest, **kwargs):
         super().__init__(option_strings, dest, nargs=0, help="print the versions of signorini and dolfinx")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        import dolfinx
-        print(f"signorini {__version__} (dolfinx {dolfinx.__version__})")
+        print(start.version_line())
         parser.exit()
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..config import ConfigError
-from ..record import results
+from ..record import results, resume
 from .. import studies
 from ..system import errors, files
 
@@ -201,6 +201,8 @@ class Watch:
         with deferred():
             start = time.perf_counter()
             rows = results_write(study, self.comm, final=False)
+            with writing(self.cfg.output_dir):
+                resume.keep_solution(self.cfg, study.result, self.comm)
             self.study = study
             if isinstance(study.result, list) and len(study.result) > self.recorded:  # the new level's t_output
                 timings = study.result[-1].timings

@@ -242,12 +242,7 @@ class Output:
 @dataclass(frozen=True)
 class Element:
     """The finite element of the compliance problem: Lagrange of degree 1 or 2."""
-    degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature a Gauss rule)")
-
-
-# P2: no closed form for the contact term, so a Gauss rule on Γ_C; its degree by default (docs/elements.md
-# measures it against a rule of twice the degree)
-P2_CONTACT_QUADRATURE = 8
+    degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature exact or a Gauss rule)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -265,7 +260,7 @@ class Config:
     problem: Problem = key(None, "give exact, or f (and g)")
     positive_part: PositivePart = key(PositivePart(), "exact | smooth | {kind: smooth, delta: ...}")
     contact_quadrature: object = key("exact", "exact | vertex | an integer >= 1 (a Gauss rule of that degree); "
-                                              f"default {P2_CONTACT_QUADRATURE} with element.degree 2")
+                                              "default exact (P2: each facet cut at the zeros of its quadratic)")
     element: Element = key(Element(), "the finite element (docs/elements.md)")
     solver: Solver = key(Solver(), "Newton and linear solves (docs/guide/solvers.md)")
     output: Output = key(Output(), "where and what is written")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from . import meshes, rendering, sections, units
 from . import validators as check
-from .schema import (GEOMETRY_KINDS, MAX_ALPHA_3D, P2_CONTACT_QUADRATURE, REQUIRED, Config, ConfigError, Problem,
+from .schema import (GEOMETRY_KINDS, MAX_ALPHA_3D, REQUIRED, Config, ConfigError, Problem,
                      keys_of)
 
 
@@ -20,7 +20,7 @@ def validate(raw, folder=None):
         pde, method, study = units.chosen(cfg)
         cfg = dataclasses.replace(cfg, sections=_sections(raw, cfg))
         cfg = method.check_config(pde.check_config(cfg, raw), raw)
-        return _check_element(_study_type(_check_geometry_mesh(cfg, raw, study), raw, pde, study), raw, pde, study)
+        return _check_element(_study_type(_check_geometry_mesh(cfg, raw, study), raw, pde, study), pde, study)
 
 
 def _core(raw, folder):
@@ -136,10 +136,10 @@ def _study_type(cfg, raw, pde, study):
     return dataclasses.replace(cfg, limit=study.parse_limit(raw.get("limit"), "limit", cfg))
 
 
-def _check_element(cfg, raw, pde, study):
-    """The element degree the problem and the study type have. What P2 supports: 2-D, its contact term by a
-    Gauss rule (the exact and vertex rules integrate piecewise linear u_h), fields written only for P1 (XDMF
-    stores the values at the mesh's vertices)."""
+def _check_element(cfg, pde, study):
+    """The element degree the problem and the study type have. What P2 supports: 2-D, its contact term exact
+    (each facet cut at the zeros of the quadratic trace) or by a Gauss rule (the vertex rule lumps P1), fields
+    written only for P1 (XDMF stores the values at the mesh's vertices)."""
     degree = cfg.element.degree
     if degree not in pde.DEGREES:
         raise ConfigError("element.degree", f"{degree} is not an element of pde: {pde.NAME} (degrees "
@@ -156,11 +156,9 @@ def _check_element(cfg, raw, pde, study):
                                             "contact_measure) are in closed form on segments only")
     if cfg.output.fields:
         raise ConfigError("output.fields", "written for element.degree 1 only (XDMF stores vertex values)")
-    if "contact_quadrature" not in raw:
-        return dataclasses.replace(cfg, contact_quadrature=P2_CONTACT_QUADRATURE)
-    if not isinstance(cfg.contact_quadrature, int):
-        raise ConfigError("contact_quadrature", f"{cfg.contact_quadrature} integrates P1 only; with "
-                                                "element.degree 2 give a Gauss rule's degree (an integer)")
+    if cfg.contact_quadrature == "vertex":
+        raise ConfigError("contact_quadrature", "vertex lumps P1 only; with element.degree 2 use exact or a "
+                                                "Gauss rule's degree (an integer)")
     return cfg
 
 

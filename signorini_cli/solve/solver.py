@@ -9,14 +9,14 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfinx import fem, la
+from dolfinx import fem
 from dolfinx.fem import petsc as fem_petsc
 
 from ..system.timing import Phases
+from .assembly import StoredRows, dirichlet_mask, load_part, varying_rows
 
 REASONS = {getattr(PETSc.SNES.ConvergedReason, name): name
            for name in dir(PETSc.SNES.ConvergedReason) if name.isupper()}
@@ -210,6 +210,7 @@ class NewtonSolver:
             self.F_load = load_part(varying)
         self.b_fixed = None  # the split's load vector (assemble_fixed)
         self.u, self.bcs, self.test = u, bcs, test
+        self.last_steps = None  # (||delta_k||, ||delta_{k-1}||, ||u_k||) of the last solve's last two full steps
         self.contact = contact
         self.fixed_dofs = dirichlet_mask(u.function_space, bcs) if contact is not None else None
         self.b = fem_petsc.create_vector(self.L_vary)
@@ -254,7 +255,7 @@ class NewtonSolver:
                 self.contact.prepare()  # the data term at this solve's eps
         self._test = dataclasses.replace(self.test, scale=self.load_scale()) if self.test else None
         self._direction, self._previous, self._confirmed, self._extra_linear_its = None, None, None, 0
-        self._accepted, self._kept = None, None  # see _keep
+        self._accepted, self._kept, self.last_steps = None, None, None  # see _keep, _converged
         self._before, self._full = self.x.duplicate(), (False, False)  # iterate before the step; full steps
         if self.snes.getType() == "newtontr" and not self._user_radius:
             self._set_trust_radius()
@@ -287,6 +288,7 @@ class NewtonSolver:
         if self._accepted is not None and reason < 0:
             reason, _, self._confirmed, its = self._accepted
             self._kept.copy(self.x)
+            self.last_steps = None  # they led to the failed iterate, not to this one
             residuals = residuals[:its + 1]
         return reason, residuals
 
@@ -297,47 +299,8 @@ class NewtonSolver:
             return False
         return self._test.step_small(self._direction, self.x.norm())
 
-    def exact_correction(self, options, own_ksp=False):
-        """(delta, ||delta||, ||u||) for Newton's exact correction delta = J(u)^{-1} F(u) at the final iterate,
-        solved by a fresh KSP with `options` (the study's own linear solver, not the user's options), or with
-        `own_ksp` by SNES's KSP when that is the same direct solver (a new numeric factorisation of J(u)): to
-        first order the algebraic error of u, whichever solver produced u. ||delta|| is inf (delta None) when
-        that linear solve fails."""
-        b, delta = self.b.duplicate(), self.x.duplicate()
-        with self.phases("assemble_residual"):
-            self.assemble_residual(self.x, b)  # leaves x in u, where the Jacobian is assembled
-        with self.phases("assemble_jacobian"):
-            self.assemble_jacobian(self.A)
-        ksp = self.snes.getKSP() if own_ksp else self._exact_ksp(options)
-        ksp.getPC().setReusePreconditioner(False)
-        ksp.setOperators(self.A)
-        delta.set(0.0)
-        ksp.solve(b, delta)
-        solved = ksp.getConvergedReason() > 0
-        if own_ksp and not solved:
-            ksp.reset()  # a failed factorisation leaves MUMPS unusable for SNES's next solve
-        if not own_ksp:
-            for key in [key for key in PETSc.Options().getAll() if key.startswith(ksp.getOptionsPrefix())]:
-                PETSc.Options().delValue(key)
-            ksp.destroy()
-        b.destroy()
-        norm = delta.norm() if solved else math.inf
-        if not solved or not math.isfinite(norm):
-            delta.destroy()
-            return None, math.inf, self.x.norm()
-        return delta, norm, self.x.norm()
-
-    def _exact_ksp(self, options):
-        """A fresh KSP with `options` on J, under its own prefix (deleted after the solve)."""
-        ksp = PETSc.KSP().create(self.u.function_space.mesh.comm)
-        prefix = f"{self.prefix}exact_"
-        _set_options(prefix, options)
-        ksp.setOptionsPrefix(prefix)
-        ksp.setFromOptions()
-        return ksp
-
     def take(self, delta):
-        """u <- u - delta: a full Newton step from the final iterate (exact_correction)."""
+        """u <- u - delta: a full Newton step from the final iterate (check.exact_correction)."""
         self.x.axpy(-1.0, delta)
         self.x.copy(self.u.vector)
         self.u.x.scatter_forward()
@@ -501,7 +464,10 @@ class NewtonSolver:
         # directions (the radius no longer cuts them), and (C) needs newtonls's simplified correction
         previous = self._previous if all(self._full) or not self.line_search else None
         correction = self._simplified_correction if self.line_search else None
-        reason = self._decide(its, fnorm, xnorm if its > 0 else self.x.norm(), step, previous, correction)
+        unorm = xnorm if its > 0 else self.x.norm()
+        # the last two full Newton steps at this iterate: what bounds its error (strategies.error_bound)
+        self.last_steps = (step, previous, unorm) if self.line_search and previous and step is not None else None
+        reason = self._decide(its, fnorm, unorm, step, previous, correction)
         self._previous = step
         return reason
 
@@ -543,60 +509,6 @@ class NewtonSolver:
         self._confirmed = y.norm() if ksp.getConvergedReason() > 0 else math.inf
         y.destroy()
         return self._confirmed
-
-
-def varying_rows(V, a_vary, contact):
-    """The owned rows (local indices) of J that its part beyond the stiffness can add to on any rank:
-    the dofs of the cells of a_vary's facet integrals (Γ_C) and of the contact term's facets."""
-    local = [] if contact is None else [contact.rows.ravel()]
-    if a_vary is not None:
-        cell_dofs = V.dofmap.list.array.reshape(V.dofmap.list.num_nodes, -1)
-        for kind in a_vary.integral_types:
-            for i in a_vary.integral_ids(kind):
-                # cells, (cell, local facet) pairs, or (cell, facet, cell, facet) for interior facets
-                entries = {fem.IntegralType.cell: 1, fem.IntegralType.exterior_facet: 2}.get(kind, 4)
-                cells = np.asarray(a_vary.domains(kind, i)).reshape(-1, entries)[:, ::2]
-                nodes = cell_dofs[cells.ravel()].ravel()  # a vector space's blocks: bs dofs per node
-                local.append((V.dofmap.index_map_bs * nodes[:, None] + np.arange(V.dofmap.index_map_bs)).ravel())
-    marks = la.vector(V.dofmap.index_map, V.dofmap.index_map_bs)  # owners learn of the rows others mark
-    if local:
-        marks.array[np.concatenate(local)] = 1.0
-    marks.scatter_reverse(la.ScatterMode.add)
-    owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
-    return np.flatnonzero(marks.array[:owned] > 0).astype(np.int32)
-
-
-@dataclass(frozen=True)
-class StoredRows:
-    """Some owned rows of an assembled matrix (global row numbers, CSR offsets, columns, values), to
-    reset a matrix of the same pattern to them."""
-    rows: np.ndarray
-    offsets: np.ndarray
-    columns: np.ndarray
-    values: np.ndarray
-
-    @classmethod
-    def of(cls, A, local_rows):
-        start = A.getOwnershipRange()[0]
-        got = [A.getRow(start + int(r)) for r in local_rows]
-        offsets = np.cumsum([0] + [len(columns) for columns, _ in got]).astype(PETSc.IntType)
-        none = [np.zeros(0)]
-        return cls((start + local_rows).astype(PETSc.IntType), offsets,
-                   np.concatenate([columns for columns, _ in got] + none).astype(PETSc.IntType),
-                   np.concatenate([values for _, values in got] + none).astype(PETSc.ScalarType))
-
-    def reset(self, A):
-        """A's stored rows := the stored values (INSERT, then flushed so that ADDs may follow). Collective."""
-        if len(self.rows):
-            A.setValuesIJV(self.offsets, self.columns, self.values, addv=PETSc.InsertMode.INSERT,
-                           rowmap=self.rows)
-        A.assemblyBegin(PETSc.Mat.AssemblyType.FLUSH)
-        A.assemblyEnd(PETSc.Mat.AssemblyType.FLUSH)
-
-
-def load_part(F):
-    """The volume (cell) integrals of a residual form: load and stiffness, no boundary penalty."""
-    return ufl.Form([itg for itg in F.integrals() if itg.integral_type() == "cell"])
 
 
 def condition_estimate(J, bcs, comm, max_its=20000, contact=None):
@@ -676,12 +588,3 @@ def _petsc_library():
     library = ctypes.CDLL(path)
     library.PetscOptionsUsed.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
     return library
-
-
-def dirichlet_mask(V, bcs):
-    """Bool mask over V's local dofs (ghosts included): True on the Dirichlet dofs of `bcs`."""
-    index_map = V.dofmap.index_map
-    mask = np.zeros((index_map.size_local + index_map.num_ghosts) * V.dofmap.index_map_bs, dtype=bool)
-    for bc in bcs:
-        mask[bc.dof_indices()[0]] = True
-    return mask

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from dolfinx import fem
 
 from ..system.timing import Phases
-from . import preflight, solver
+from . import check, preflight, solver
 from .transfer import transfer
 
 logger = logging.getLogger(__name__)
@@ -25,6 +25,12 @@ EXACT_STEPS = 5
 # correction <= EXACT_TOL ||u_h|| keeps the algebraic error of every reported quantity below 1e-6 of it
 EXACT_TOL = 1e-13
 EXACT_STALL = 0.5  # a correction at least half the previous one: the round-off floor is reached
+# the error of a Newton step's own linear solve, relative to the step (error_bound): LU's round-off (backward
+# stable, kappa(J) <= 1e10), and CG + AMG stopped at ||B r|| <= linear_rtol ||B F||: kappa(BJ) linear_rtol,
+# kappa(BJ) <= 100 for BoomerAMG/GAMG on these Jacobians
+LINEAR_ERROR = {"direct": 1e-6, "iterative": 100.0}
+# option names that choose SNES's Krylov method or preconditioner: the residual check then solves with its own
+USER_LINEAR = ("ksp_", "pc_", "sub_")
 CONVERGED_EXACT = "CONVERGED_EXACT_NEWTON"  # the success test passed, but only exact Newton steps reached the root
 DIVERGED_EXACT = "DIVERGED_EXACT_NEWTON"  # ... and exact Newton steps from its iterate did not converge
 
@@ -95,24 +101,26 @@ def descend(newton, problem, eps, solver_cfg, solved_eps):
 
 def checked(newton, problem, outcome):
     """The residual check of a solve that passed the success test: the exact Newton correction at its
-    iterate (a direct solve, or CG + AMG to linear_rtol, never the user's PETSc options) must be at most
-    EXACT_TOL ||u_h||, where the algebraic error of every reported quantity is below 1e-6 of it. The success
-    test sees only the iterates' own steps, and a stationary or one-sweep linear solver, a damped line
-    search or a lagged Jacobian makes small steps far from the root. Else exact
-    Newton steps follow, up to EXACT_STEPS, until the correction passes or stalls at its round-off floor
-    (below stol ||u_h||, no longer halving: the polish's rule); the Outcome says how many it took."""
+    iterate must be at most EXACT_TOL ||u_h||, where the algebraic error of every reported quantity is below
+    1e-6 of it. The success test sees only the iterates' own steps, and a stationary or one-sweep linear
+    solver, a damped line search or a lagged Jacobian makes small steps far from the root. The correction is
+    solved with the preconditioner of the last Newton step (check.borrowed_solve), or, when the user's PETSc
+    options chose it, in a fresh KSP of the study's own linear solver; it is not solved where the study's own
+    last two Newton steps already bound the error (error_bound). Else exact Newton steps follow, up to
+    EXACT_STEPS, until the correction passes or stalls at its round-off floor (below stol ||u_h||, no longer
+    halving: the polish's rule); the Outcome says how many it took."""
     if not outcome.converged or problem.bounds is not None:  # the VI: PETSc's test on its reduced residual
         return outcome
-    own = dataclasses.replace(newton.cfg, petsc_options=())
-    options = solver.petsc_options(own, problem.dim, linear=newton.linear, dofs=newton.dofs)
-    options = {key: value for key, value in options.items() if key.startswith(("ksp_", "pc_"))}
-    # without options of the user's, a direct SNES's own KSP is that solver: its symbolic factorisation serves
-    own_ksp = newton.linear == "direct" and not newton.cfg.petsc_options
+    own = not newton.cfg.petsc_options
+    bound = error_bound(newton) if own else None
+    if bound is not None and bound <= EXACT_TOL:
+        return dataclasses.replace(outcome, correction=bound)
+    options = None if not _user_preconditioner(newton.cfg) else _own_linear_options(newton, problem)
     stol = newton.cfg.stol or EXACT_TOL
     previous = None
     with newton.snes.phases("newton"):
         for taken in range(EXACT_STEPS + 1):
-            delta, size, unorm = newton.snes.exact_correction(options, own_ksp)
+            delta, size, unorm = check.exact_correction(newton.snes, options)
             small = size <= EXACT_TOL * unorm
             floor = previous is not None and size <= stol * unorm and size >= EXACT_STALL * previous
             if small or floor or delta is None or taken == EXACT_STEPS:
@@ -123,6 +131,37 @@ def checked(newton, problem, outcome):
     if delta is not None:
         delta.destroy()
     return _checked_outcome(outcome, taken, small or floor, size / unorm if unorm > 0 else size)
+
+
+def error_bound(newton):
+    """A bound on the error of the final iterate / ||u_h|| from the last two full Newton steps of the study's
+    own solver, or None. Steps that contract by Θ = ||delta_k|| / ||delta_{k-1}|| <= 1/2, Θ not growing
+    in Newton's local phase (it shrinks with the error at quadratic convergence: Deuflhard, Newton Methods,
+    2004, Sect. 2.1), leave an error of at most the sum of the steps to come, Θ ||delta_k|| / (1 - Θ); the
+    last step's own linear solve adds at most LINEAR_ERROR ||delta_k||. Not for Eisenstat-Walker's loose
+    linear solves."""
+    if newton.snes.last_steps is None or newton.cfg.inexact:
+        return None
+    step, previous, unorm = newton.snes.last_steps
+    theta = step / previous
+    if theta > 0.5 or unorm <= 0:
+        return None
+    linear = LINEAR_ERROR[newton.linear] * (1.0 if newton.linear == "direct" else newton.cfg.linear_rtol)
+    return (theta / (1 - theta) + linear) * step / unorm
+
+
+def _user_preconditioner(solver_cfg):
+    """Whether the user's PETSc options choose SNES's linear solver or preconditioner: then its PC may be no
+    approximate inverse of J (Jacobi, none), and the check solves with the study's own one instead."""
+    return any(name.startswith(USER_LINEAR) for name, _ in solver_cfg.petsc_options)
+
+
+def _own_linear_options(newton, problem):
+    """The KSP and PC options of the study's own linear solver on this level (a direct solve, or CG + AMG to
+    linear_rtol), without the user's."""
+    own = dataclasses.replace(newton.cfg, petsc_options=())
+    options = solver.petsc_options(own, problem.dim, linear=newton.linear, dofs=newton.dofs)
+    return {key: value for key, value in options.items() if key.startswith(("ksp_", "pc_"))}
 
 
 def _checked_outcome(outcome, taken, passed, correction):

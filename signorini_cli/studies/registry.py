@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 from mpi4py import MPI
 
+from ..problems import registry as problems
+
 from . import rate_map, refinement, signorini, sweep, total
 
 STUDY_TYPES = {module.NAME: module for module in (refinement, signorini, sweep, total, rate_map)}
@@ -89,5 +91,7 @@ def run_study(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     """Run the study of type cfg.study_type; call on_level(result_so_far) after every solve; return
     the result: a list of Levels (refinement, signorini), a Sweep or a Total.
     `monitor(snes, its, fnorm)`, if given, is called at every Newton iteration (progress).
-    `done`: the levels a resumed study already has, kept as they are and not solved again."""
-    return of(cfg.study_type).run(cfg, on_level, comm, monitor, done)
+    `done`: the levels a resumed study already has, kept as they are and not solved again.
+    Its data are checked at interior points once per mesh family (problems.registry.checked_once)."""
+    with problems.checked_once():
+        return of(cfg.study_type).run(cfg, on_level, comm, monitor, done)

@@ -16,7 +16,7 @@ from dolfinx.fem import petsc as fem_petsc
 from signorini_cli import studies
 from signorini_cli.app import cli
 from signorini_cli.config import ConfigError
-from signorini_cli.solve import solver
+from signorini_cli.solve import assembly, solver
 from conftest import BASE, merge, solved_problem
 
 NAN_DATA = {"exact": None, "f": "sqrt(x - 0.5)"}  # NaN at every quadrature point with x < 0.5
@@ -269,7 +269,7 @@ def test_condition_estimate_matches_dense_eigenvalues(make_config, monkeypatch):
     problem = solved_problem(cfg, monkeypatch)
     lam_min, lam_max = solver.condition_estimate(problem.J, problem.bcs, MPI.COMM_SELF, contact=problem.contact)
     A = fem_petsc.assemble_matrix(fem.form(problem.J), bcs=problem.bcs)
-    problem.contact.add_jacobian(A, solver.dirichlet_mask(problem.u_h.function_space, problem.bcs))
+    problem.contact.add_jacobian(A, assembly.dirichlet_mask(problem.u_h.function_space, problem.bcs))
     A.assemble()
     free = np.setdiff1d(np.arange(A.getSize()[0]), problem.bcs[0].dof_indices()[0])
     eigenvalues = scipy.linalg.eigvalsh(A.convert("dense").getDenseArray()[np.ix_(free, free)])
