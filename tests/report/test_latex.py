@@ -1,7 +1,6 @@
 """LaTeX of the rate tables: escaped text, numbers, the config's expressions typeset, and tables that
 compile in a plain article without an overfull box whatever the columns."""
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -10,7 +9,7 @@ import pytest
 from signorini_cli import config
 from signorini_cli.config import expressions
 from signorini_cli.report import latex, tables
-from test_report import DEMO, demo_like
+from test_report import DEMO, demo_like, needs_pdflatex
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -127,17 +126,17 @@ CASES = {
 }
 
 
-@pytest.mark.skipif(not shutil.which("pdflatex"), reason="pdflatex not installed")
+@needs_pdflatex
 @pytest.mark.parametrize("case", CASES)
 def test_tables_compile_in_a_plain_article_without_overfull_box(tmp_path, case):
     assert compile_log(tmp_path, CASES[case]()).count("Overfull") == 0
 
 
-def compile_log(folder, tex):
-    """pdflatex's log of `tex` \\input into \\documentclass{article} with booktabs (its header names it)."""
-    (folder / "rates.tex").write_text(tex)
-    (folder / "doc.tex").write_text("\\documentclass{article}\n\\usepackage{booktabs}\n"
-                                    "\\begin{document}\n\\input{rates.tex}\n\\end{document}\n")
+def compile_log(folder, tex, packages="booktabs", name="rates.tex"):
+    """pdflatex's log of `tex` \\input into \\documentclass{article} with `packages` (its header names booktabs)."""
+    (folder / name).write_text(tex)
+    (folder / "doc.tex").write_text(f"\\documentclass{{article}}\n\\usepackage{{{packages}}}\n"
+                                    f"\\begin{{document}}\nText.\n\n\\input{{{name}}}\n\\end{{document}}\n")
     done = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", "-no-shell-escape",
                            "doc.tex"], cwd=folder, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout[-2000:]
@@ -158,3 +157,34 @@ def test_every_function_of_the_expression_language_typesets(name):
     arguments = ", ".join(["x", "y"][:expressions.ARITY.get(name, 1)])
     tex = latex.expression(expressions.parse(f"{name}({arguments})", {"x", "y"}).tree)
     assert tex.endswith(f"({arguments})") or tex in (r"\sqrt{x}", "|x|")
+
+
+# every study type on coarse levels (about a minute in all): (config, overrides)
+STUDY_TYPES = {
+    "refinement": ("configs/paper/square-alpha2-theta-small.yaml", ["mesh.refinements=[4,8,16]"]),
+    "data-only": ("configs/paper/data-push-theta-h.yaml", ["mesh.refinements=[4,8,16]"]),
+    "p2": ("configs/elements/p2-square-alpha2.yaml", ["mesh.refinements=[4,8,16]"]),
+    "elasticity": ("configs/elasticity/square-alpha2.yaml", ["mesh.refinements=[4,8,16]"]),
+    "hertz": ("configs/elasticity/hertz.yaml", ["mesh.sizes=[0.2,0.1,0.05]"]),
+    "signorini": ("configs/limit/signorini.yaml", ["mesh.refinements=[4,8,16]"]),
+    "epsilon_sweep": ("configs/limit/sweep.yaml", ["mesh.refinements=[4,8]", "limit.epsilon.count=3",
+                                                   "limit.epsilon.stop=1e-4"]),
+    "total_error": ("configs/limit/total.yaml", ["mesh.refinements=[4,8,16]", "limit.alpha=[1,2]",
+                                                 "limit.exponent=[1,2]"]),
+}
+
+
+@needs_pdflatex
+@pytest.mark.parametrize("kind", STUDY_TYPES)
+def test_every_tex_of_a_study_type_is_one_float_that_compiles_cleanly(tmp_path, kind):
+    from signorini_cli.app import cli
+    path, overrides = STUDY_TYPES[kind]
+    sets = [arg for o in overrides for arg in ("--set", o)]
+    assert cli.main(["run", str(ROOT / path), "--output", str(tmp_path / "out"), "--quiet", *sets]) in (0, 1)
+    written = sorted((tmp_path / "out").rglob("*.tex"))
+    assert written
+    for tex in written:
+        text = tex.read_text()
+        assert text.count(r"\begin{table}") == 1 and text.count(r"\label{") == 1, tex
+        log = compile_log(tex.parent, text, packages="booktabs,amsmath,graphicx", name=tex.name)
+        assert not re.search(r"^(Overfull|Underfull|!)", log, re.M), (tex, log[-2000:])
