@@ -7,7 +7,8 @@ from pathlib import Path
 from ..record import csvfile
 from ..studies import rate_map
 from ..system import files
-from . import plots
+from ..config import names
+from . import latex, plots
 
 MAP_FILE = "map.csv"
 TERMINAL_WIDTH = 120
@@ -98,7 +99,8 @@ def point_line(k, count, row):
     values = ", ".join(f"{key}={_cell(row[key])}" for key in row if key in _varied(row))
     rates = ", ".join(f"{n} {rate_cell(row, n)} {_cell(row.get(f'verdict_{n}'))}" for n in norms)
     status = "" if row["status"] == "complete" else f" [{row['status']}]"
-    return f"point {k + 1}/{count} ({values}): {rates}; {float(row['time_s']):.1f} s{status}"[:TERMINAL_WIDTH]
+    # numbered from 0 like the map's table, its folders and --points: "point 3 of 0-3"
+    return f"point {k} of 0-{count - 1} ({values}): {rates}; {float(row['time_s']):.1f} s{status}"[:TERMINAL_WIDTH]
 
 
 def _varied(row):
@@ -117,32 +119,33 @@ def markdown_table(rows, varied, norms):
     return "\n".join(lines + ["| " + " | ".join(cells) + " |" for cells in body]) + "\n"
 
 
-TEX_ESCAPE = {"_": r"\_", "%": r"\%", "&": r"\&", "#": r"\#", "$": r"\$"}
-
-
-def _tex(text):
-    return "".join(TEX_ESCAPE.get(c, c) for c in str(text))
+KEYS_TEX = {"alpha": r"$\alpha$", "epsilon.theta": r"$\theta$", "epsilon.p": "$p$", "dimension": "$d$",
+            "element.degree": "degree"}  # a varied config key as the caption's formula names it
 
 
 def latex_table(rows, varied, norms):
-    """map.tex: the varied keys, per norm fitted rate, proven rate and verdict (abbreviated, with the key
-    in the caption); \\small with tight column gaps and \\resizebox as the last resort, so it fits \\textwidth."""
-    head = [_tex(k) for k in varied] + [x for n in norms for x in (f"{_tex(n)} fit", "proven", "")]
-    lines = [r"\begin{table}", r"\centering", r"\small", r"\setlength{\tabcolsep}{3pt}",
-             r"\resizebox{\ifdim\width>\textwidth\textwidth\else\width\fi}{!}{%",
-             r"\begin{tabular}{" + "r" * len(varied) + "rrl" * len(norms) + "}", r"\hline",
-             " & ".join(head) + r" \\", r"\hline"]
-    for row in rows:
-        cells = [_tex(_cell(row.get(k))) for k in varied]
-        for n in norms:
-            cells += [_rate(row.get(f"rate_{n}")), _rate(row.get(f"proven_{n}")),
-                      VERDICT_SHORT.get(row.get(f"verdict_{n}"), _tex(_cell(row.get(f"verdict_{n}"))))]
-        lines.append(" & ".join(cells) + r" \\")
-    key = ", ".join(f"{s}: {v}" for v, s in VERDICT_SHORT.items() if v in ("agrees", "exceeds", "below",
-                                                                           "inconclusive", "not covered"))
-    lines += [r"\hline", r"\end{tabular}}", r"\caption{Rate map: rates fitted over the finest levels against the "
-              r"paper's proven rates; verdict " + _tex(key) + ".}", r"\end{table}"]
-    return "\n".join(lines) + "\n"
+    """map.tex: one booktabs float with a \\label, the varied keys as their symbols, per norm (written out)
+    the fitted rate, the proven rate and the verdict (abbreviated, the key in the caption); split by norms
+    where it does not fit \\textwidth."""
+    lead = [(KEYS_TEX.get(k, latex.escape(k)), [latex.escape(_cell(row.get(k))) for row in rows]) for k in varied]
+    cells = []
+    for n in norms:
+        cells += [("fit", [_latex_rate(row.get(f"rate_{n}")) for row in rows]),
+                  ("proven", [_latex_rate(row.get(f"proven_{n}")) for row in rows]),
+                  ("", [VERDICT_SHORT.get(row.get(f"verdict_{n}"), latex.escape(_cell(row.get(f"verdict_{n}"))))
+                        for row in rows])]
+    key = "; ".join(f"{s}: {v}" for v, s in VERDICT_SHORT.items() if v in ("agrees", "exceeds", "below",
+                                                                            "inconclusive", "not covered"))
+    caption = ("Rate map: for each " + ", ".join(head for head, _ in lead) + ", the slope of $\\log e$ against "
+               "$\\log h$ fitted over the finest levels, the rate the paper proves, and the verdict (" +
+               latex.escape(key) + ").")
+    return "% rate map written by signorini; needs \\usepackage{booktabs}\n" + latex.table(
+        lead + cells, [(names.name(n).tex, 3) for n in norms], caption, latex.label("map"), len(rows),
+        align="r" * len(lead) + "rrl" * len(norms))
+
+
+def _latex_rate(value):
+    return "--" if value is None or value == "" else latex.rate(float(value))
 
 
 # --- figures ------------------------------------------------------------------------------------
