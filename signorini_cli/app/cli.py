@@ -104,7 +104,8 @@ def _add_report_commands(sub):
     compare = sub.add_parser("compare", help="overlay the curves of several studies")
     compare.add_argument("paths", nargs="+", help="study folders (or their study.h5 / rates.csv)")
     compare.add_argument("--label", action="append", metavar="NAME", help="a legend label per study, in order")
-    compare.add_argument("--output", help="folder for the figures (default: compare/ next to the first study)")
+    compare.add_argument("--output", help="folder for the tables and figures (default: compare-<labels>/ next to "
+                                          "the first study)")
 
 
 class _Version(argparse.Action):

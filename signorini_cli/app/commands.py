@@ -170,7 +170,7 @@ def compare(args):
         twice = next((label for label in labels if labels.count(label) > 1), None)
         if twice is not None:  # one label would stand for two studies in the legend and the table
             raise ConfigError("--label", f"{twice!r} names two of the studies; give each its own label")
-        folder = Path(args.output) if args.output else found[0].folder.parent / "compare"
+        folder = Path(args.output) if args.output else found[0].folder.parent / compare_folder(labels)
         rows = {f"{label} {part}".strip(): part_rows for label, study in zip(labels, found)
                 for part, part_rows in compared(study).items()}
         written = []
@@ -181,6 +181,15 @@ def compare(args):
     if MPI.COMM_WORLD.rank == 0:
         emit([tables.summary_table(rows), tables.wrote((p.name for p in written), folder)])
     return EXIT_OK
+
+
+def compare_folder(labels):
+    """compare-<label>-<label>...: a comparison's default folder named for its inputs, so that the next
+    comparison of other studies does not write over it (long lists cut, a hash keeps them apart)."""
+    slug = "-".join(re.sub(r"[^A-Za-z0-9_.]+", "_", label).strip("_") for label in labels)
+    if len(slug) > 60:
+        slug = slug[:51] + "-" + hashlib.sha256("\0".join(labels).encode()).hexdigest()[:8]
+    return "compare-" + slug
 
 
 def compared(study):

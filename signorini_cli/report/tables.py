@@ -1,6 +1,7 @@
 """Human-readable output: the terminal table, Markdown/LaTeX tables and the figures of a study of any type
 (what its type says it reports)."""
 import math
+import re
 import textwrap
 from pathlib import Path
 
@@ -199,20 +200,29 @@ def _paper_number(value, missing="–"):
 
 
 def _comparison_tex(table, all_norms, fit_levels):
+    """compare.tex: norms down, studies across (each its finest error and fitted slope), so that norms ×
+    studies fit one table; levels, finest h and time in the first rows; split by studies past \\textwidth."""
     number = lambda v: "--" if v is None else latex.number(v, 3)  # noqa: E731
-    cells = [("study", [_latex_text(row["study"]) for row in table]),
-             ("levels", [str(row["levels"]) for row in table]),
-             ("finest $h$", [number(row["finest_h"]) for row in table]),
-             ("time [s]", [f"{row['time_s']:.2f}" for row in table])]
-    for norm in all_norms:
-        cells += [("finest", [number(row[f"{norm}_finest"]) for row in table]),
-                  ("fit", [_rate(row[f"{norm}_fit"], "--", latex.rate) for row in table])]
-    caption = ("Comparison of the studies " + ", ".join(_latex_text(row["study"]) for row in table)
-               + f": per norm the error on the finest converged level and the slope of $\\log e$ against "
-               f"$\\log h$ fitted over the last {fit_levels} levels; time: wall time of all levels. "
-               + "; ".join(d for d in map(_definition, all_norms) if d) + ".")
-    text = latex.table(cells, [(_header(n), 2) for n in all_norms], caption, latex.label("compare"), len(table))
+    lead = [("", ["levels", "finest $h$", "time [s]"] + [_header(n) for n in all_norms])]
+    cells = []
+    for row in table:
+        cells += [("finest", [str(row["levels"]), number(row["finest_h"]), f"{row['time_s']:.2f}"]
+                   + [number(row[f"{n}_finest"]) for n in all_norms]),
+                  ("fit", ["", "", ""] + [_rate(row[f"{n}_fit"], "--", latex.rate) for n in all_norms])]
+    caption = ("Comparison of " + ", ".join(label_tex(row["study"]) for row in table) + ": per norm the error on "
+               "the finest converged level and the slope of $\\log e$ against $\\log h$ fitted over the last "
+               f"{fit_levels} levels; time: wall time of all levels" + "".join(
+                   f"; {d}" for d in map(_definition, all_norms) if d) + ".")
+    text = latex.table(lead + cells, [(label_tex(row["study"]), 2) for row in table], caption,
+                       latex.label("compare"), 3 + len(all_norms), align="l" + "r" * len(cells))
     return "% comparison table written by signorini compare; needs \\usepackage{booktabs}\n" + text
+
+
+def label_tex(label):
+    """A study's label in LaTeX: its text escaped, "α=1.5" or "p = 2" parts as mathematics."""
+    text = _latex_text(label)
+    return re.sub(r"\$\\(\w+)\$\s*=\s*([-+\d.eE]+)|\b([A-Za-z])\s*=\s*([-+\d.eE]+)",
+                  lambda m: f"$\\{m[1]} = {m[2]}$" if m[1] else f"${m[3]} = {m[4]}$", text)
 
 
 # --- tables for papers and notebooks (deal.II ConvergenceTable style: error, then its rate) ----

@@ -134,7 +134,7 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert [line.split()[0] for line in out.splitlines()[2:4]] == ["theta1", "theta10"]  # under 2 header lines
-    compared = tmp_path / "results" / "compare"
+    compared = tmp_path / "results" / "compare-theta1-theta10"  # named for its inputs: another compare goes beside
     assert (compared / "compare_convergence.pdf").exists()
     table = (compared / "compare.csv").read_text().splitlines()
     assert table[0].startswith("study,levels,finest_h,time_s,L2_finest,L2_fit,H1_finest,H1_fit")
