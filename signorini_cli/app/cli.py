@@ -98,6 +98,8 @@ def _add_report_commands(sub):
                      "norms the paper bounds), all, or a comma-separated list (default: the study's output.columns)")
     rep.add_argument("--width", metavar="LENGTH", help="figure width, e.g. 390pt or 5.4in (default: the study's "
                      "output.figure_width, else 345pt)")
+    rep.add_argument("--font", choices=("cm", "stix", "sans"), help="the figures' font: cm (Computer Modern, "
+                     "a default LaTeX article's; the default), stix (Times-like) or sans")
     rep.add_argument("--per-norm", action="store_true", help="also one convergence figure per norm")
     rep.add_argument("--no-plots", action="store_true", help="tables only (matplotlib not imported)")
     rep.add_argument("--output", help="write into this folder instead of the study's")

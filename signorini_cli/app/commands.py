@@ -102,7 +102,7 @@ def report_study(args):
             raise ConfigError("--digits", f"must be >= 1, got {digits}")
         columns = config.table_columns(args.columns, "--columns") if args.columns else None
         figure = {"width": config.length(args.width, "--width") if args.width else None,
-                  "per_norm": args.per_norm}
+                  "per_norm": args.per_norm, "font": args.font or "cm"}
         folder = Path(args.output or study.folder)
         beside = args.columns and folder.resolve() == study.folder.resolve()
         written = []
@@ -127,8 +127,15 @@ def columns_suffix(columns):
 
 
 def report_map(args):
-    """A map's outputs redrawn from its folder."""
+    """A map's outputs redrawn from its folder (the options that shape a rate table or its figures refused:
+    a map's table and figures are its own)."""
     try:
+        given = next((option for option, value in (("--columns", args.columns), ("--digits", args.digits),
+                                                    ("--width", args.width), ("--per-norm", args.per_norm),
+                                                    ("--font", args.font), ("--output", args.output)) if value), None)
+        if given:
+            raise ConfigError(given, "shapes a study's rate table or figures, not a map's (map.csv, map.tex and "
+                                     "its heat maps); report one of its points' folders for those")
         text = maps.report(args.path, draw=not args.no_plots) if MPI.COMM_WORLD.rank == 0 else None
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return fail(args.path, err)

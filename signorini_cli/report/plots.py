@@ -50,14 +50,14 @@ class Layout:
 
 
 def write_all(rows, folder, proven=None, title="", fit_levels=rates.FIT_LEVELS, width=None, per_norm=False, shown=None,
-              suffix=""):
+              suffix="", font="cm"):
     """convergence, work_precision and newton (and convergence_<norm> with per_norm), each as PNG and PDF
     in `folder`, `suffix` added to their names; the paths written. `shown`: the plotted norms (default:
-    all)."""
+    all); `font`: a key of FONTS."""
     layout = Layout(width or WIDTH_PT, per_norm)
     curves = error_curves(rows)
     shown = [n for n in (shown or curves) if n in curves]
-    with styled():
+    with styled(font):
         figures = {"convergence": convergence(rows, proven, title, fit_levels, layout.width, shown),
                    "work_precision": work_precision(rows, title, layout.width, shown),
                    "newton": newton({"": rows}, title, layout.width)}
@@ -68,11 +68,11 @@ def write_all(rows, folder, proven=None, title="", fit_levels=rates.FIT_LEVELS, 
                 for path in save(fig, folder, name + suffix)]
 
 
-def write_comparison(studies, folder, width=None):
+def write_comparison(studies, folder, width=None, font="cm"):
     """Several studies ({label: rows}): convergence and work–precision as a grid of one panel per norm,
     and Newton iterations; the paths written."""
     width = width or WIDTH_PT
-    with styled():
+    with styled(font):
         figures = {"compare_convergence": compare_convergence(studies, width),
                    "compare_work_precision": compare_work_precision(studies, width),
                    "compare_newton": newton(studies, "", width)}
@@ -441,9 +441,9 @@ def _widen(limits, low_px, high_px, size_px, set_limits):
 
 # --- the ε → 0 studies ---------------------------------------------------------------------------
 
-def model_error(rows, path, width=WIDTH_PT):
+def model_error(rows, path, width=WIDTH_PT, font="cm"):
     """The model-error figure of `rows` (one mesh of an ε-sweep) as `path` (its suffix picks the format)."""
-    with styled():
+    with styled(font):
         model_error_figure(rows, width).savefig(path)
     return path
 

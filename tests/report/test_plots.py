@@ -203,3 +203,32 @@ def test_run_without_plots_never_imports_matplotlib(tmp_path):
     done = subprocess.run([sys.executable, "-c", code, str(cfg)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "t" / "rates.tex").exists() and not list((tmp_path / "t").glob("*.png"))
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("width_pt", [345.0, 246.0])
+def test_pdf_page_is_the_width_in_tex_points_computer_modern(tmp_path, width_pt):
+    paths = plots.write_all(synthetic({"L2": 2.0, "H1": 1.0}), tmp_path, width=width_pt)
+    pdf = next(p for p in paths if p.name == "convergence.pdf").read_bytes()
+    media = re.search(rb"/MediaBox \[\s*0 0 ([\d.]+)", pdf)
+    assert float(media[1]) * 72.27 / 72 == pytest.approx(width_pt, abs=0.1)  # bp in the PDF, pt in TeX
+    assert b"Cmr10" in pdf and b"STIX" not in pdf and b"DejaVu" not in pdf  # no fallback glyph needed
+
+
+@pytest.mark.fast
+def test_font_key_chooses_stix(tmp_path):
+    paths = plots.write_all(synthetic({"L2": 2.0}), tmp_path, font="stix")
+    pdf = next(p for p in paths if p.name == "convergence.pdf").read_bytes()
+    assert b"STIXGeneral" in pdf and b"Cmr10" not in pdf
+
+
+@pytest.mark.fast
+def test_twelve_curves_twelve_styles():
+    styles = [tuple(map(str, plots.curve_style(i).values())) for i in range(12)]
+    assert len(set(styles)) == 12
+
+
+@pytest.mark.fast
+def test_sub_study_legends_are_their_values():
+    assert plots.legend_of("alpha1.5-p2") == r"$\alpha = 1.5$, $p = 2$"
+    assert plots.legend_of("signorini") == "Signorini VI"
