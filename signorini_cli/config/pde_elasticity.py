@@ -4,10 +4,12 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from . import pde_poisson
 from . import validators as check
 from .schema import COORDINATES, ConfigError, Problem, UnitSection, key, keys_of
 
 NAME = "elasticity"
+DOC = "docs/elasticity.md"  # how the reference and `signorini init` describe it beside its name
 KEYS = ("exact", "gap", "normal", "define")  # the problem keys it takes (besides pde and method)
 DEGREES = (1,)  # P1 only: its forms and Γ_C measures are built for piecewise linear u_h
 VI = False  # no Signorini variational inequality: it runs refinement studies
@@ -26,29 +28,38 @@ DATA_MEASURES = ("penetration", "contact_measure", "contact_force")
 
 
 def problem(raw, path, dim):
-    """problem.exact: one expression per component of u; gap g0 (an expression, default 0); normal."""
-    exact = _components(raw["exact"], f"{path}.exact", dim) if "exact" in raw else None  # None: f = 0, ĝ = 0
-    gap = check.expression(raw["gap"], f"{path}.gap", COORDINATES[dim]) if "gap" in raw else None
+    """problem.exact: one expression per component of u; gap g0 (an expression, default 0); normal; the
+    names of define in exact and gap, as in the scalar problem."""
+    coords = COORDINATES[dim]
+    defined = pde_poisson.define(raw.get("define", {}), f"{path}.define", coords + ("eps",))
+    exact = _components(raw["exact"], f"{path}.exact", dim, defined) if "exact" in raw else None  # None: f = 0
+    gap = check.expression(raw["gap"], f"{path}.gap", coords, defined) if "gap" in raw else None
+    if gap is not None and "eps" in gap.names:
+        raise ConfigError(f"{path}.gap", "the initial gap cannot depend on eps (a definition it uses does)")
     normal = _normal(raw["normal"], f"{path}.normal", dim) if "normal" in raw else None
-    return Problem(exact=exact, pde=NAME, gap=gap, normal=normal)
+    return Problem(exact=exact, define=tuple(defined.items()), pde=NAME, gap=gap, normal=normal)
 
 
-def _components(value, path, dim):
+def _components(value, path, dim, defined):
     """A list of d expressions in x, y (z), eps: one per component of u."""
     if not isinstance(value, list) or len(value) != dim:
         got = f"{len(value)} components" if isinstance(value, list) else check.show(value)
         raise ConfigError(path, f"must be a list of {dim} expressions (one per component of u in {dim}-D), got {got}")
-    return tuple(check.expression(c, f"{path}[{i}]", COORDINATES[dim] + ("eps",)) for i, c in enumerate(value))
+    return tuple(check.expression(c, f"{path}[{i}]", COORDINATES[dim] + ("eps",), defined)
+                 for i, c in enumerate(value))
 
 
 def _normal(value, path, dim):
-    """A unit vector of d numbers (normalised here; zero is refused)."""
+    """A unit vector of d numbers (normalised here; zero is refused). Scaled by its largest entry first, so
+    that squaring neither overflows ([1e200, 1e200]) nor underflows ([1e-200, 0])."""
     if not isinstance(value, list) or len(value) != dim:
         raise ConfigError(path, f"must be a list of {dim} numbers, got {check.show(value)}")
     n = [check.number(v, f"{path}[{i}]") for i, v in enumerate(value)]
-    norm = math.sqrt(sum(v * v for v in n))
-    if norm == 0:
+    largest = max(abs(v) for v in n)
+    if largest == 0:
         raise ConfigError(path, "must not be zero")
+    n = [v / largest for v in n]
+    norm = math.sqrt(sum(v * v for v in n))
     return tuple(v / norm for v in n)
 
 
