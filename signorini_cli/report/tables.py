@@ -516,8 +516,9 @@ def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""
                                           title=title(study, cfg), fit_levels=fit_levels, shown=shown,
                                           suffix=suffix, **figure)
         elif fig.kind == "model_error":
-            written += [plotting.model_error(fig.data, folder / f"{fig.name}{suffix}", figure.get("width") or
-                                             plotting.WIDTH_PT, figure.get("font", "cm")) for suffix in (".png", ".pdf")]
+            written += [plotting.model_error(fig.data, folder / f"{fig.name}{suffix}", figure.get("width")
+                                             or plotting.WIDTH_PT, figure.get("font", "cm"))
+                        for suffix in (".png", ".pdf")]
         elif fig.kind == "comparison":
             written += plotting.write_comparison(fig.data, folder, figure.get("width"), figure.get("font", "cm"))
     return written
