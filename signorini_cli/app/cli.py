@@ -25,7 +25,6 @@ try:  # Ctrl-C while the modules load (MPI starts with commands' imports): one l
 
     from mpi4py import MPI
 
-    from .. import config
     from ..config import ConfigError
     from . import commands, guard, start
     from .commands import EXIT_BAD_INPUT, EXIT_EXPECTATION_NOT_MET, EXIT_NOT_CONVERGED, EXIT_OK  # noqa: F401
@@ -35,7 +34,10 @@ except KeyboardInterrupt:
 
 
 DESCRIPTION = "FEniCSx convergence studies of the normal compliance contact model."  # one line of --help
-CONFIG_HELP = f"study config (YAML; its keys: {config.DOCS}, or `signorini init`)"
+CONFIG_HELP = "study config (YAML; `signorini init` prints every key with its default and what it does)"
+# documentation that is there wherever the package is installed: the installed command itself
+DOCS_HELP = ("Config keys: `signorini init` prints every key with its default and a one-line description (the "
+             "project's configuration reference says the same at more length).")
 PETSC_HELP = ("PETSc options such as -snes_monitor or -ksp_rtol 1e-8 may follow the config (or `--`): they join "
               "solver.petsc_options, under the study's prefix")
 
@@ -52,8 +54,7 @@ class Parser(argparse.ArgumentParser):
 
 def build_parser():
     parser = Parser(prog="signorini", description=DESCRIPTION,
-                                     epilog=f"Config keys: {config.DOCS}; `signorini init` prints every key "
-                                            "with its default.")
+                                     epilog=DOCS_HELP)
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a convergence study", epilog=PETSC_HELP)
@@ -84,8 +85,8 @@ def _add_report_commands(sub):
     check.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        help="override a config key, as for run (repeatable)")
     init = sub.add_parser("init", help="a commented config with every key and its default",
-                          description=f"Every config key with its default and a one-line description "
-                                      f"(more in {config.DOCS}); valid as it stands.")
+                          description="Every config key with its default and a one-line description; "
+                                      "valid as it stands.")
     init.add_argument("file", nargs="?", help="write it here (default: print it)")
     init.add_argument("--force", action="store_true", help="overwrite FILE")
     listing = sub.add_parser("list", help="the shipped configs with their descriptions")

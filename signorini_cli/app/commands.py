@@ -342,6 +342,8 @@ def init(args):
             Path(args.file).write_text(text)
     except OSError as err:
         return fail(args.file, err)
+    if MPI.COMM_WORLD.rank == 0:
+        emit([f"wrote {args.file}: every config key at its default, each with a one-line comment"])
     return EXIT_OK
 
 
