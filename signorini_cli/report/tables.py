@@ -86,18 +86,24 @@ def format_table(rows, cfg=None, columns=None):
         lead = lead + ["time_s"]
     def label(column):  # short names for the paper's columns, the CSV's names for the others
         return names.name(column).text if chosen == "paper" else column
-    groups = [("", [(label(c), [_format(c, r.get(c)) for r in rows]) for c in lead])]
+    order = list(rows[0])
+    first = min((order.index(n) for n in shown if n in order), default=len(order))
+    before = [c for c in lead if c not in order or order.index(c) < first]  # the level's identity, then the
+    after = [c for c in lead if c not in before]  # errors, then timings and solver details (`all`)
+    def columns_of(chosen_columns):
+        return [(label(c), [_format(c, r.get(c)) for r in rows]) for c in chosen_columns]
+    groups = [("", columns_of(before))]
     groups += [(label(n), [("error", [_format(n, r.get(n)) for r in rows]),
                                      ("rate", [_format("rate_", r.get(f"rate_{n}")) for r in rows])])
                for n in shown]
-    return "\n".join(_aligned(groups) + _failures(rows, end=""))
+    return "\n".join(_aligned(groups + [("", columns_of(after))]) + _failures(rows, end=""))
 
 
 def _aligned(groups, width=TERMINAL_WIDTH):
     """Lines of a right-aligned table whose column groups [(title, [(header, cells)])] get their title
     centred above them; wider than `width`, it is wrapped into blocks that repeat the first column."""
-    units = [(title, [column]) for title, columns in groups if not title for column in columns]
-    units += [group for group in groups if group[0]]
+    units = [unit for title, columns in groups
+             for unit in ([group for group in [(title, columns)]] if title else [("", [c]) for c in columns])]
     key = units[0]
     blocks = [[]]
     for unit in units:

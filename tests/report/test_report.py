@@ -102,7 +102,7 @@ def test_terminal_table_fits_120_columns_all_one_option_away():
     everything = tables.format_table(rows, DEMO, columns="all").splitlines()
     assert max(map(len, everything)) <= 120  # wrapped into blocks, each led by the level again
     blocks = "\n".join(everything).split("\n\n")
-    assert all(block.splitlines()[1 if k else 0].split()[0] == "level" for k, block in enumerate(blocks))
+    assert all("level" in [line.split()[0] for line in block.splitlines()[:2]] for block in blocks)  # under titles
     assert all(column in "\n".join(everything) for column in ("dofs", "t_forms", "converged", "energy_err"))
 
 
@@ -254,3 +254,11 @@ def test_wrote_line_wraps_between_names():
     assert lines[0].startswith("wrote map.csv, ") and all(line.startswith("  ") for line in lines[1:])
     assert "".join(lines).replace("  ", " ").removeprefix("wrote ").split(", ") == names
     assert tables.wrote(["rates.md"], "/tmp/x") == "wrote into /tmp/x: rates.md"
+
+
+def test_all_columns_put_the_errors_before_the_timings():
+    rows = [dict(row, t_mesh=0.1, peak_memory_mb=12.0) for row in demo_like(3)]
+    text = tables.format_table(rows, columns="all")
+    header = next(line for line in text.splitlines() if "newton_its" in line)
+    assert header.index("newton_its") < header.index("error")  # the level, its errors, then how long it took
+    assert all(text.index("H1") < text.index(late) for late in ("time_s", "t_mesh", "peak_memory_mb"))
