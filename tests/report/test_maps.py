@@ -46,7 +46,8 @@ def test_heat_map_panel_per_value_of_the_other_keys():
     rows = [dict(r, **{"epsilon.law": law}) for law in ("theta_h", "theta_sqrt_h") for r in ROWS]
     fig = maps.heat_map(rows, "L2", "epsilon.theta", "alpha", ["epsilon.law"])
     panels = [ax for ax in fig.axes if ax.images]
-    assert [ax.get_title() for ax in panels] == ["epsilon.law=theta_h", "epsilon.law=theta_sqrt_h"]
+    assert [ax.get_title() for ax in panels] == [r"$\|u-u_h\|_{L^2}$, epsilon.law = theta_h",
+                                                 r"$\|u-u_h\|_{L^2}$, epsilon.law = theta_sqrt_h"]  # norm, fixed key
 
 
 def test_rate_lines_draw_the_log_corrected_fit_where_there_is_one():
