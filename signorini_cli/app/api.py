@@ -14,7 +14,8 @@ from ..config import loader, reading
 from ..meshing import meshes
 from ..record import results
 from ..report import tables
-from . import guard
+from ..studies import rate_map
+from . import guard, maps
 
 
 Study = studies.Study  # a finished study: config, result, tables (main table: `rows`) and verdict (`summary`)
@@ -128,10 +129,11 @@ class Result(studies.Study):
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
     """Run cfg's study on `comm` and return it as a Result (the runner of `signorini run`). on_level(level, u_h)
     or on_level(level, u_h, scene), if given, is called after each solve of a refinement or signorini study
-    (total_error: of its sub-studies) with the Level, its solution u_h (a dolfinx Function; the mesh is
-    u_h.function_space.mesh) and its Scene (boundary tags, ds_c, exact solution, contact pressure), before the
-    study lets them go. write=True keeps rates.csv, summary.csv, study.h5 and status.txt in cfg.output_dir
-    current after every solve, as `signorini run` does (its tables and figures: Result.report)."""
+    (total_error: of its sub-studies; a map: of its points) with the Level, its solution u_h (a dolfinx
+    Function; the mesh is u_h.function_space.mesh) and its Scene (boundary tags, ds_c, exact solution, contact
+    pressure), before the study lets them go. write=True keeps rates.csv, summary.csv, study.h5 and status.txt
+    in cfg.output_dir current after every solve, as `signorini run` does (its tables and figures:
+    Result.report), holding the folder's lock as it does; a map is written as `signorini run --force` writes it."""
     kept = []
     wants_scene = on_level is not None and len(inspect.signature(on_level).parameters) >= 3
 
@@ -147,9 +149,11 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
         if on_level is not None:
             on_level(*(last, last.solution, scene)[:3 if wants_scene else 2])
 
+    if studies.of(cfg.study_type).POINTS:
+        return _run_map(cfg, on_level, comm, write)
     if not write:
         return _result(studies.run(cfg, each, comm), kept)
-    with guard.Watch(cfg, (), comm) as watch:
+    with guard.FolderLock(cfg.output_dir, comm), guard.Watch(cfg, (), comm) as watch:
         return _result(studies.run(cfg, each, comm), kept)
 
 
@@ -157,3 +161,20 @@ def _result(study, kept):
     """The Study as a Result holding the finest converged level's (u_h, Scene)."""
     fields = {f.name: getattr(study, f.name) for f in dataclasses.fields(study)}
     return Result(**fields, finest=kept[0] if kept else None)
+
+
+def _run_map(cfg, on_level, comm, write):
+    """A map's Study: the Points this group of ranks ran, and map.csv's rows of every point as its table."""
+    def each(point):
+        last = point.levels[-1:]  # also called as a point starts
+        if on_level is not None and last and getattr(last[0], "solution", None) is not None:
+            on_level(last[0], last[0].solution)
+
+    if write:
+        ran = maps.run(cfg, force=True, quiet=True, comm=comm, on_level=each)
+    else:
+        ran = studies.run_study(cfg, on_level=each, comm=comm)
+    mine = [(p.index, rate_map.row(p.cfg, p.values, p.levels, maps.status_of(p), cfg.map.varied))
+            for p in ran if p.comm.rank == 0]
+    rows = sorted((pair for part in comm.allgather(mine) for pair in part), key=lambda pair: pair[0])
+    return _result(studies.Study(cfg, ran, {"map": [row for _, row in rows]}), [])

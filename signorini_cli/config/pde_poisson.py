@@ -11,6 +11,7 @@ DOC = "the scalar model"  # how the reference and `signorini init` describe it b
 KEYS = ("exact", "f", "g", "exact_solves", "define")  # the problem keys it takes (besides pde and method)
 SECTION = None  # no section of its own
 DEGREES = (1, 2)  # the element degrees it has
+VECTOR = False  # u is scalar
 VI = True  # it has a Signorini variational inequality (paper eq. (8)), which the ε → 0 studies solve
 
 

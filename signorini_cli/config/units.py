@@ -4,9 +4,9 @@ its module and one line below. The config layer asks these modules and never com
 
 Each module has NAME and DOC (a few words beside its name in the reference, or "").
 A problem module has KEYS (the problem keys it takes besides pde and method), SECTION (a schema.UnitSection
-of its own, or None; then also section(raw, path)), DEGREES (its element degrees), VI (it has a Signorini
-variational inequality; then also check_vi(problem, study_type)), problem(raw, path, dim) -> schema.Problem
-and check_config(cfg, raw) -> cfg (its rules across sections).
+of its own, or None; then also section(raw, path)), DEGREES (its element degrees), VECTOR (u has one component
+per coordinate), VI (it has a Signorini variational inequality; then also check_vi(problem, study_type)),
+problem(raw, path, dim) -> schema.Problem and check_config(cfg, raw) -> cfg (its rules across sections).
 A method module has PDES (the problems it is built for), SECTION (and section(raw, path)), UNUSED (top-level
 keys it refuses, e.g. the penalty's epsilon: key -> hint; to_dict leaves them out) and
 check_config(cfg, raw) -> cfg.

@@ -8,8 +8,10 @@ the symmetric gradient. With the manufactured data the two Γ_C conditions add u
     ∫ σ(u_h):ε(v) + (1/ε)∫_Γc [w_h]_+^α (v·n)
         = ∫ f·v + ∫_Γc σ(u_ex)n·v + (1/ε)∫_Γc [w_ex]_+^α (v·n),
 
-w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine), so contact.ContactTerm integrates the
-penalty exactly, and the kinked data [w_ex]_+^α by its adaptive rules when n is one vector on all of Γ_C."""
+w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine) or, in 2-D, quadratic (P2, g0 at most
+quadratic), so contact.ContactTerm integrates the penalty exactly (P2: each segment cut at the zeros of the
+quadratic, as for the scalar problem), and the kinked data [w_ex]_+^α by its adaptive rules when n is one
+vector on all of Γ_C."""
 from contextlib import ExitStack
 from dataclasses import dataclass
 
@@ -27,8 +29,8 @@ from .compliance import QUADRATURE_DEGREE, Forms, Split
 
 
 def space(cfg, msh):
-    """P1 vector Lagrange, d components."""
-    return element.space(msh, 1, shape=(msh.geometry.dim,))
+    """Vector Lagrange of the configured degree (P1 or P2), d components."""
+    return element.space(msh, cfg.element.degree, shape=(msh.geometry.dim,))
 
 
 def lame(material):
@@ -62,14 +64,14 @@ def gap(cfg, x, functions):
 @dataclass(frozen=True)
 class Gap:
     """What the Γ_C measures read: w = u·n − g0 of u_h and u_ex (UFL), a(e, e) of an error e (UFL), and
-    the ContactTerm's vertex values of w_h (facets, n+1) with the facets' vertex points, and w_ex in numpy."""
+    the ContactTerm's facet dof values of w_h (facets, k) with the dofs' points, and w_ex in numpy."""
     w_h: object
     w_exact: object
     energy: object
     term: contact.ContactTerm
     cfg: object = None
 
-    def vertex_values(self):
+    def dof_values(self):
         return self.term.values(self.term.u_h.x.array)
 
     def exact(self, eps_value):
@@ -107,7 +109,7 @@ def forms(cfg, domain, u_h, eps):
         w_h, cfg.alpha, cfg.positive_part, fem.Constant(msh, domain.h), eps)
     kink = 0 if u_ex is None or (term is not None and term.u_exact is not None) else compliance.compliance(
         w_ex, cfg.alpha, exact_pp, None, eps)
-    stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # P1: exact at degree 0
+    stiffness = ufl.inner(sigma(u_h, mu, lmbda), strain(v)) * ufl.dx(domain=msh)  # UFL's degree 2(k−1): exact
     load = load_form(u_ex, v, n, mu, lmbda, dx, ds_c)
     varying = stiffness
     if not (_is_zero(q) and _is_zero(kink)):

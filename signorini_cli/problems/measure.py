@@ -128,17 +128,25 @@ def penetration(u_h, contact_dofs):
     return max(u_h.function_space.mesh.comm.allreduce(local, op=MPI.MAX), 0.0)
 
 
-def vertex_penetration(comm, values):
-    """max [w_h]_+ over the Γ_C facets' vertex values (facets, n+1) of every rank: exact for P1."""
+def vertex_penetration(comm, values, degree=1):
+    """max [w_h]_+ over the Γ_C facets' dof values (facets, k) of every rank: exact for P1 (a vertex's) and
+    for P2 on segments (each segment's quadratic's maximum)."""
+    if degree == 2 and values.size:
+        values = quadratic_max(values)
     local = float(values.max()) if values.size else 0.0
     return max(comm.allreduce(local, op=MPI.MAX), 0.0)
 
 
-def vertex_contact_measure(comm, values, points):
-    """|{w_h > 0} ∩ Γ_C| from the P1 vertex values (facets, n+1) and points (facets, n+1, 3) of the rank's
-    owned Γ_C facets (positive_fraction: exact for P1)."""
-    local = float(np.sum(facet_sizes(points) * positive_fraction(values))) if len(values) else 0.0
-    return comm.allreduce(local, op=MPI.SUM)
+def vertex_contact_measure(comm, values, points, degree=1):
+    """|{w_h > 0} ∩ Γ_C| from the dof values (facets, k) and points (facets, k, 3) of the rank's owned Γ_C
+    facets: exact for P1 (positive_fraction) and for P2 on segments (quadratic_positive_fraction)."""
+    if not len(values):
+        return comm.allreduce(0.0, op=MPI.SUM)
+    if degree == 2:
+        fraction, vertices = quadratic_positive_fraction(values), points[:, :2]
+    else:
+        fraction, vertices = positive_fraction(values), points
+    return comm.allreduce(float(np.sum(facet_sizes(vertices) * fraction)), op=MPI.SUM)
 
 
 def contact_measure(u_h, facet_dofs, facet_points):

@@ -88,22 +88,23 @@ class Verifier:
         return found
 
     def _normal_quantities(self, level, domain, forms, wanted):
-        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0, from its vertex values: penetration,
-        the contact set and (1/eps)∫[w_h]_+^alpha, all exact (no potential energy)."""
-        comm, found = domain.mesh.comm, {}
-        values, points = forms.gap.vertex_values(), forms.gap.term.points
+        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0, from its facet dof values: penetration,
+        the contact set and (1/eps)∫[w_h]_+^alpha, all exact for P1 and P2 (no potential energy)."""
+        comm, found, degree = domain.mesh.comm, {}, self.cfg.element.degree
+        values, points = forms.gap.dof_values(), forms.gap.term.points
         if "penetration" in wanted:
-            found["penetration"] = measure.vertex_penetration(comm, values)
+            found["penetration"] = measure.vertex_penetration(comm, values, degree)
         if "contact_measure" in wanted:
-            found["contact_measure"] = measure.vertex_contact_measure(comm, values, points)
+            found["contact_measure"] = measure.vertex_contact_measure(comm, values, points, degree)
         if "contact_force" in wanted:
-            found["contact_force"] = contact.positive_power(comm, values, points, self.cfg.alpha) / level.eps
+            force = contact.positive_power(comm, values, points, self.cfg.alpha, degree)
+            found["contact_force"] = force / level.eps
         return found
 
     def _contact_variable(self, u_h, domain, forms, level):
         """(points, w_h, w_ex, seminorm) the Γ_C errors read: the Γ_C facets' vertices, u_h's facet dof
         values, u_ex(facets, x) and |e|_H1 for the scalar problem; for elasticity w = u·n − g0 (w_h at the
-        vertices, as the solve's contact term has it) and the energy seminorm a(e, e)^(1/2) of e = u − u_h
+        facets' dofs, as the solve's contact term has it) and the energy seminorm a(e, e)^(1/2) of e = u − u_h
         (Lemma 3.1's analogue)."""
         if forms.gap is None:
             dofs, points = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
@@ -114,7 +115,8 @@ class Verifier:
         degree = measure.error_degree(u_h.function_space, level.h)
         dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
         a_ee = measure.integrate(forms.gap.energy(forms.u_exact - u_h), dx)
-        return forms.gap.term.points, forms.gap.vertex_values(), forms.gap.exact(level.eps), abs(a_ee) ** 0.5
+        vertices = forms.gap.term.points[:, :msh.topology.dim]
+        return vertices, forms.gap.dof_values(), forms.gap.exact(level.eps), abs(a_ee) ** 0.5
 
     def _energy(self, level, domain, u_h, forms, penalty):
         msh = domain.mesh

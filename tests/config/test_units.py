@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "signorini_cli" / "config"
 NAMES = set(units.PDES) | set(units.METHODS) | set(units.STUDY_TYPES)
 # what units.py's docstring says each kind of unit has
-INTERFACE = {"problem.pde": ("NAME", "DOC", "KEYS", "SECTION", "DEGREES", "VI", "problem", "check_config"),
+INTERFACE = {"problem.pde": ("NAME", "DOC", "KEYS", "SECTION", "DEGREES", "VECTOR", "VI",
+                             "problem", "check_config"),
              "problem.method": ("NAME", "DOC", "PDES", "SECTION", "UNUSED", "check_config"),
              "study_type": ("NAME", "DOC", "POINTS", "VI", "GEOMETRY", "FIELDS", "DEGREES", "UNUSED", "LIMIT",
                             "SECTION", "check_config")}
