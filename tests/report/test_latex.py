@@ -5,6 +5,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import yaml
 
 from signorini_cli import config
 from signorini_cli.config import expressions
@@ -174,15 +175,32 @@ STUDY_TYPES = {
 }
 
 
-@needs_pdflatex
-@pytest.mark.parametrize("kind", STUDY_TYPES)
-def test_every_tex_of_a_study_type_is_one_float_that_compiles_cleanly(tmp_path, kind):
+MAP = {"study": "m", "study_type": "map", "dimension": 2, "alpha": 2.0, "epsilon": {"law": "theta_h", "theta": 1.0},
+       "mesh": {"kind": "unit_square", "refinements": [4, 8, 16]}, "contact": "bottom",
+       "problem": {"exact": "sin(2*pi*x)*(1-y)**2"}, "map": {"grid": {"epsilon.theta": [0.1, 10], "alpha": [1, 2]}}}
+
+
+def run_kind(kind, out):
+    """Run a study of `kind` (a key of STUDY_TYPES, map or compare: of two refinement studies) into `out`."""
     from signorini_cli.app import cli
+    if kind == "map":
+        (out.parent / "map.yaml").write_text(yaml.safe_dump(MAP))
+        return cli.main(["run", str(out.parent / "map.yaml"), "--output", str(out), "--quiet"])
+    if kind == "compare":
+        for k in ("refinement", "p2"):
+            run_kind(k, out / k)
+        return cli.main(["compare", *map(str, sorted(out.glob("*/*/"))), "--label", "α=2", "--label", "p = 2"])
     path, overrides = STUDY_TYPES[kind]
     sets = [arg for o in overrides for arg in ("--set", o)]
-    assert cli.main(["run", str(ROOT / path), "--output", str(tmp_path / "out"), "--quiet", *sets]) in (0, 1)
+    return cli.main(["run", str(ROOT / path), "--output", str(out), "--quiet", *sets])
+
+
+@needs_pdflatex
+@pytest.mark.parametrize("kind", list(STUDY_TYPES) + ["map", "compare"])
+def test_every_tex_of_a_study_type_is_one_float_that_compiles_cleanly(tmp_path, kind):
+    assert run_kind(kind, tmp_path / "out") in (0, 1)
     written = sorted((tmp_path / "out").rglob("*.tex"))
-    assert written
+    assert written and (kind != "compare" or any(t.name == "compare.tex" for t in written))
     for tex in written:
         text = tex.read_text()
         assert text.count(r"\begin{table}") == 1 and text.count(r"\label{") == 1, tex
