@@ -547,9 +547,14 @@ def terminal(study, cfg=None):
 
 
 def wrote(names, folder=None):
-    """A command's closing line, 'wrote [into FOLDER:] a, b, ...', wrapped to TERMINAL_WIDTH between names."""
+    """A command's closing line, 'wrote [into FOLDER:] a, b, ...', wrapped to TERMINAL_WIDTH between names; the
+    files of a sub-folder (a total-error study's sub-studies) counted under the folder's name."""
+    names = [str(name) for name in names]
+    subs = list(dict.fromkeys(name.split("/")[0] for name in names if "/" in name))
+    counts = {sub: sum(name.startswith(sub + "/") for name in names) for sub in subs}
+    listed = [name for name in names if "/" not in name] + [f"{sub}/ ({counts[sub]} files)" for sub in subs]
     head = f"wrote into {folder}: " if folder is not None else "wrote "
-    return textwrap.fill(head + ", ".join(map(str, names)), TERMINAL_WIDTH, subsequent_indent="  ",
+    return textwrap.fill(head + ", ".join(listed), TERMINAL_WIDTH, subsequent_indent="  ",
                          break_long_words=False, break_on_hyphens=False)
 
 

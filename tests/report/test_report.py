@@ -2,6 +2,7 @@
 import os
 import shutil
 import subprocess
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -254,6 +255,11 @@ def test_wrote_line_wraps_between_names():
     assert lines[0].startswith("wrote map.csv, ") and all(line.startswith("  ") for line in lines[1:])
     assert "".join(lines).replace("  ", " ").removeprefix("wrote ").split(", ") == names
     assert tables.wrote(["rates.md"], "/tmp/x") == "wrote into /tmp/x: rates.md"
+    # a total-error study: its sub-studies' files counted per folder, not listed one by one
+    subs = [f"alpha{a}-p{q}/{f}" for a in (1, 2, 3) for q in (1, 2, 3) for f in ("rates.md", "rates.tex", "a.pdf")]
+    assert tables.wrote(["total.md"] + subs) == textwrap.fill(
+        "wrote total.md, " + ", ".join(f"alpha{a}-p{q}/ (3 files)" for a in (1, 2, 3) for q in (1, 2, 3)), 120,
+        subsequent_indent="  ", break_long_words=False, break_on_hyphens=False)
 
 
 def test_all_columns_put_the_errors_before_the_timings():
