@@ -88,11 +88,6 @@ class Fit:
     log_approach: bool = False
 
     @property
-    def drift(self):
-        """How far the successive rates inside the fit move: the rate is not settled by this much."""
-        return max(self.rates) - min(self.rates) if self.rates else 0.0
-
-    @property
     def limit(self):
         """Where the rates head: r(h) = p + c h^q through the last two rates, q from the last three (Q_UNKNOWN
         with fewer, or when their changes differ in sign; at least Q_MIN); p is the limit."""

@@ -48,18 +48,19 @@ def needed_bytes(dofs, nonzeros, ranks):
     return ranks * BYTES_PER_RANK + dofs * BYTES_PER_DOF + nonzeros * BYTES_PER_NONZERO
 
 
-def check_memory(cfg, comm):
+def check_memory(cfg, comm, copies=1):
     """ConfigError (naming the key of the levels) on every rank when the finest level, with its reference
-    solution for a data-only scene, would need more memory than the nodes of `comm` have available.
-    --ignore-memory-check skips the check."""
+    solution for a data-only scene, would need more memory than the nodes of `comm` have available; `copies`
+    groups of its ranks may each hold such a level at once (a map's points). --ignore-memory-check skips it."""
     peak = peak_meshes(cfg, comm)
     if peak is None:
         return
     dofs, nonzeros = sum(d for _, d, _ in peak), sum(z for _, _, z in peak)
-    need, have = needed_bytes(dofs, nonzeros, comm.size), available_on_nodes(comm)
+    need, have = needed_bytes(copies * dofs, copies * nonzeros, comm.size), available_on_nodes(comm)
     if need > have:
         what = "the finest level" if len(peak) == 1 else "the finest level with its reference solution"
         meshes = " and ".join(label for label, _, _ in peak)
+        what += f", {copies} at once (one per group of ranks)" if copies > 1 else ""
         raise ConfigError(f"mesh.{cfg.mesh.level_key}",
                           f"{what} ({meshes}: {dofs:,} dofs, {nonzeros:,} Jacobian nonzeros) needs about "
                           f"{_gb(need)} of memory, more than the {_gb(have)} available; use --ignore-memory-check "

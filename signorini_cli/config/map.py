@@ -126,9 +126,9 @@ def chunk(text, count):
     """The point indices of `--points 0-49,60` (inclusive ranges), checked against the map's count."""
     chosen = set()
     for part in str(text).split(","):
-        first, _, last = part.strip().partition("-")
+        first, dash, last = part.strip().partition("-")
         try:
-            lo, hi = int(first), int(last or first)
+            lo, hi = int(first), int(last if dash else first)  # "2-" and "" name no point
         except ValueError:
             raise ConfigError("--points", f"expected ranges such as 0-49,60, got {text!r}") from None
         if not 0 <= lo <= hi < count:

@@ -3,6 +3,7 @@ through the module problem_of(cfg) returns, so a new PDE is one new module here.
 import contextlib
 import dataclasses
 
+from ..meshing import meshes
 from . import compliance, elasticity, posed, vi
 
 # cfg.problem.pde -> the compliance problem's module, and the module of its ε → 0 limit (the Signorini VI)
@@ -25,9 +26,10 @@ _passed = None  # within checked_once(): the (mesh family, data) whose data pass
 
 @contextlib.contextmanager
 def checked_once():
-    """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points
-    once per mesh family (what a data check at interior points can find there, it finds on any level),
-    at the vertices and on Γ_C on every level (where a finer level's new vertices may meet a singularity)."""
+    """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points, and
+    their load for settling, once per mesh family, on its coarsest mesh (what a check at interior points can
+    find there, it finds on any level); at the vertices and on Γ_C on every level (where a finer level's new
+    vertices may meet a singularity)."""
     global _passed
     if _passed is not None:
         yield
@@ -43,8 +45,11 @@ def check_posed(cfg, domain, u_exact, eps_value):
     """ConfigError (on every rank) when the level's problem is not posed right: every path that solves calls
     it before its first solve on a mesh (refinement levels, map points, the VI, ε-sweeps, total error)."""
     key = (_family(cfg), _data(cfg.problem, eps_value))
-    cells = _passed is None or key not in _passed
-    POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, cells=cells)
+    coarsest = None
+    if _passed is None or key not in _passed:  # the cells' checks: on the family's coarsest mesh
+        first = cfg.mesh.levels[0]
+        coarsest = domain if domain.n == first else meshes.build(cfg.mesh, cfg.contact, first, domain.mesh.comm)
+    POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, coarsest=coarsest)
     if _passed is not None:
         _passed.add(key)
 

@@ -139,9 +139,10 @@ def _format(column, value):
     return str(value)
 
 
-def comparison(studies, fit_levels=rates.FIT_LEVELS):
+def comparison(studies, fit_levels=None):
     """One row per study ({label: rows}): levels, finest converged h, total wall time, per norm the
-    finest error (<norm>_finest) and the slope fitted over the last `fit_levels` levels (<norm>_fit)."""
+    finest error (<norm>_finest) and its rate (<norm>_fit), the slope fitted as the study's verdict fits it:
+    over its last fit_levels[label] levels (a study not in `fit_levels`: rates.FIT_LEVELS)."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
     table = []
     for label, rows in studies.items():
@@ -151,12 +152,19 @@ def comparison(studies, fit_levels=rates.FIT_LEVELS):
         for norm in all_norms:
             points = [(row["h"], row[norm]) for row in ok if row.get(norm)]
             row[f"{norm}_finest"] = points[-1][1] if points else None
-            row[f"{norm}_fit"] = rates.slope(*zip(*points), k=fit_levels) if points else None
+            k = (fit_levels or {}).get(label, rates.FIT_LEVELS)
+            row[f"{norm}_fit"] = rates.slope(*zip(*points), k=k) if points else None
         table.append(row)
     return table, all_norms
 
 
-def summary_table(studies, fit_levels=rates.FIT_LEVELS):
+def fitted_over(studies, fit_levels=None):
+    """'the last k levels' when every study is fitted over the same k, else each study's own."""
+    ks = {(fit_levels or {}).get(label, rates.FIT_LEVELS) for label in studies}
+    return f"the last {ks.pop()} levels" if len(ks) == 1 else "each study's last verification.fit_levels levels"
+
+
+def summary_table(studies, fit_levels=None):
     """The comparison for the terminal: one line per study, each norm's finest error and fitted slope
     under its name (wrapped into blocks at TERMINAL_WIDTH)."""
     table, all_norms = comparison(studies, fit_levels)
@@ -169,7 +177,7 @@ def summary_table(studies, fit_levels=rates.FIT_LEVELS):
     return "\n".join(_aligned(groups))
 
 
-def write_comparison(studies, folder, fit_levels=rates.FIT_LEVELS):
+def write_comparison(studies, folder, fit_levels=None):
     """compare.csv, compare.md and compare.tex (fitting a page) of `studies` in `folder`; the paths."""
     table, all_norms = comparison(studies, fit_levels)
     folder = Path(folder)
@@ -184,7 +192,7 @@ def write_comparison(studies, folder, fit_levels=rates.FIT_LEVELS):
                                     _paper_number(row[f"{n}_finest"]), _rate(row[f"{n}_fit"], "–"))]) + " |"
               for row in table]
     paths[1].write_text("\n".join(lines) + "\n")
-    paths[2].write_text(_comparison_tex(table, all_norms, fit_levels))
+    paths[2].write_text(_comparison_tex(table, all_norms, fitted_over(studies, fit_levels)))
     return paths
 
 
@@ -192,7 +200,7 @@ def _paper_number(value, missing="–"):
     return missing if value is None else f"{value:.3e}"
 
 
-def _comparison_tex(table, all_norms, fit_levels):
+def _comparison_tex(table, all_norms, fitted):
     number = lambda v: "--" if v is None else latex.number(v, 3)  # noqa: E731
     cells = [("study", [_latex_text(row["study"]) for row in table]),
              ("levels", [str(row["levels"]) for row in table]),
@@ -203,7 +211,7 @@ def _comparison_tex(table, all_norms, fit_levels):
                   ("fit", [_rate(row[f"{norm}_fit"], "--", latex.rate) for row in table])]
     caption = ("Comparison of the studies " + ", ".join(_latex_text(row["study"]) for row in table)
                + f": per norm the error on the finest converged level and the slope of $\\log e$ against "
-               f"$\\log h$ fitted over the last {fit_levels} levels; time: wall time of all levels. "
+               f"$\\log h$ fitted over {fitted}; time: wall time of all levels. "
                + "; ".join(d for d in map(_definition, all_norms) if d) + ".")
     text = latex.table(cells, [(_header(n), 2) for n in all_norms], caption, latex.label("compare"), len(table))
     return "% comparison table written by signorini compare; needs \\usepackage{booktabs}\n" + text

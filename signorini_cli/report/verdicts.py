@@ -41,8 +41,9 @@ def markdown_lines(summary):
     lines = ["", "| norm | observed | interval | proven | verdict | why |", "|---|---|---|---|---|---|"]
     for v in summary.norms:
         proven = "–" if v.proven is None else f"{v.proven:g}"
-        lines.append(f"| {v.norm} | {_rate(v.observed)} | {interval(v)} | {proven} | {v.verdict} | "
-                     f"{v.reason.replace('|', '/')} |")
+        observed = _rate(v.observed) + (f" (log-corrected {_rate(v.log_corrected)})" if v.log_factor else "")
+        lines.append(f"| {v.norm} | {observed} | {interval(v)} | {proven} | {v.verdict} | "
+                     f"{v.reason.replace('|', chr(92) + '|')} |")  # |ln h| stays |ln h| in a table cell
     return lines
 
 

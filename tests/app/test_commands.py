@@ -8,7 +8,7 @@ import yaml
 
 from signorini_cli import config, studies
 from signorini_cli.app import cli, commands
-from signorini_cli.record import results
+from signorini_cli.record import csvfile, results
 from conftest import BASE, merge
 
 
@@ -142,6 +142,22 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert r"\label{tab:compare}" in (compared / "compare.tex").read_text() and (compared / "compare.md").exists()
     assert cli.main(["compare", *folders, "--label", "one"]) == cli.EXIT_BAD_INPUT
     assert "--label: give one per study" in capsys.readouterr().err
+
+
+def test_compare_shows_the_rate_run_shows(make_config, tmp_path):
+    """The same study's rate in summary.csv (the verdict's) and in compare.csv: one fit, over the study's own
+    verification.fit_levels (here 2, not the default 3)."""
+    for k in (2, 3):
+        cfg = make_config(study=f"fit{k}", mesh={"refinements": [4, 8, 16]}, verification={"fit_levels": k})
+        results.write(studies.study_of(cfg, studies.run_study(cfg)))
+    folders = [tmp_path / "results" / f"fit{k}" for k in (2, 3)]
+    assert cli.main(["compare", *map(str, folders), "--output", str(tmp_path / "c")]) == cli.EXIT_OK
+    fits = {row["study"]: row["L2_fit"] for row in csvfile.read(tmp_path / "c" / "compare.csv")}
+    for k, folder in zip((2, 3), folders):
+        (l2,) = [row for row in csvfile.read(folder / "summary.csv") if row["name"] == "L2"]
+        assert fits[f"fit{k}"] == l2["observed_rate"]
+    assert fits["fit2"] != fits["fit3"]
+    assert "each study's last verification.fit_levels levels" in (tmp_path / "c" / "compare.tex").read_text()
 
 
 @pytest.mark.parametrize("labels", [["X", "X"], None])
