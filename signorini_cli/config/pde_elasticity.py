@@ -11,7 +11,7 @@ from .schema import COORDINATES, ConfigError, Problem, UnitSection, key, keys_of
 NAME = "elasticity"
 DOC = "docs/elasticity.md"  # how the reference and `signorini init` describe it beside its name
 KEYS = ("exact", "gap", "normal", "define")  # the problem keys it takes (besides pde and method)
-DEGREES = (1, 2)  # the element degrees it has (P2 as the scalar problem has it: 2-D)
+DEGREES = (1, 2)  # the element degrees it has
 VECTOR = True  # u has d components: d dofs per node, d × d Jacobian blocks
 VI = False  # no Signorini variational inequality: it runs refinement studies
 
