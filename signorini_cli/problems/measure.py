@@ -39,7 +39,7 @@ def integrate_together(msh, exprs, dx):
 
 def error_degree(V, h):
     """The quadrature degree of the error integrals of a function in V on a mesh of size h."""
-    return element.error_degree(element.degree_of(V), h)
+    return element.error_degree(element.degree_of(V), h, V.mesh.topology.dim)
 
 
 def product_degree(V):
