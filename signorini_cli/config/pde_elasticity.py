@@ -11,7 +11,7 @@ from .schema import COORDINATES, FACES, ConfigError, Problem, UnitSection, key, 
 NAME = "elasticity"
 DOC = "docs/elasticity.md"  # how the reference and `signorini init` describe it beside its name
 KEYS = ("exact", "gap", "normal", "define", "hertz_radius")  # the problem keys it takes (besides pde and method)
-DEGREES = (1, 2)  # the element degrees it has (P2 as the scalar problem has it: 2-D)
+DEGREES = (1, 2)  # the element degrees it has
 VECTOR = True  # u has d components: d dofs per node, d × d Jacobian blocks
 VI = True  # its Signorini problem: u·n <= g0 as bounds on one component (problems/elastic_vi.py)
 
