@@ -152,7 +152,7 @@ def load_form(u_ex, v, mu, lmbda, dx):
     return ufl.dot(-ufl.div(sigma(u_ex, mu, lmbda)), v) * dx
 
 
-def contact_term(cfg, domain, u_h, eps, penalty, kinked, measuring=False):
+def contact_term(cfg, domain, u_h, eps, penalty=False, kinked=False, measuring=False):
     """The Γ_C terms beside UFL on w = u·n − g0 (contact_quadrature exact or vertex; None for a Gauss rule
     unless `measuring`: then a term that only reads w_h's vertex values). The kinked data term joins it
     when n is one vector on all of Γ_C: then w_ex is a function of x alone for the adaptive rules."""
