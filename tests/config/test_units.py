@@ -80,7 +80,8 @@ def digest(data):
 
 # digests of the resolved dict and the hashed settings of every shipped config (a map's points too), computed
 # before the config was cut into modules; problem.method was added after them, at its default penalty, and the
-# P2 configs were recomputed when their contact_quadrature default became the exact rule
+# P2 configs were recomputed when their contact_quadrature default became the exact rule, the 2-D Hertz config
+# when it gained problem.hertz_radius, its finest size 0.00625 and its own verification block
 SHIPPED = json.loads((Path(__file__).parent / "shipped_configs.json").read_text())
 
 
