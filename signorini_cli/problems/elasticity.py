@@ -95,8 +95,9 @@ def forms(cfg, domain, u_h, eps):
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     mu, lmbda = lame(cfg.material)
     rule = cfg.contact_quadrature
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
-    ds_c = domain.ds_c(rule if isinstance(rule, int) else QUADRATURE_DEGREE)
+    data_degree = domain.quadrature[0] if domain.quadrature else QUADRATURE_DEGREE  # as the data need (posed)
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": data_degree})
+    ds_c = domain.ds_c(rule if isinstance(rule, int) else data_degree)
     n = ufl.as_vector(cfg.problem.normal) if cfg.problem.normal is not None else ufl.FacetNormal(msh)
     x = ufl.SpatialCoordinate(msh)
     u_ex = exact_solution(cfg, msh, eps) if cfg.problem.exact is not None else None
@@ -210,9 +211,10 @@ def dirichlet_condition(V, domain, u_exact):
     return compliance.dirichlet_condition(V, domain, u_exact)
 
 
-def errors(u_h, u_exact, h):
-    """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (seminorm)} of the vector error."""
-    return measure.errors(u_h, u_exact, h)
+def errors(u_h, u_exact, h, degree=None):
+    """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (seminorm)} of the vector error (`degree` as
+    compliance.errors')."""
+    return measure.errors(u_h, u_exact, h, degree)
 
 
 def rigid_motions(V):
