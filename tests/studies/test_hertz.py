@@ -4,6 +4,11 @@ import csv
 import math
 from pathlib import Path
 
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from signorini_cli import config, studies
 from signorini_cli.app import cli
 from signorini_cli.record import results
 
@@ -36,3 +41,24 @@ def test_hertz_study_reports_its_quantities(tmp_path, capsys):
     assert "| a_h |" in markdown and "| norm |" not in markdown
     assert r"$a_h$" in (folder / "rates.tex").read_text()
     assert (folder / "pressure.png").exists()
+
+
+@pytest.mark.mpi
+def test_hertz_and_profile_two_ranks_equal_one(tmp_path_factory):
+    """Size 0.05: the Hertz columns and the pressure profile on 2 ranks equal one rank's (the nodal sums
+    cross the ranks' boundary); 1e-9 relative: two Newton solves, each to its own round-off."""
+    comm = MPI.COMM_WORLD
+    folder = comm.bcast(str(tmp_path_factory.mktemp("hertz")) if comm.rank == 0 else None)
+    cfg = config.load(HERTZ, [f"output.dir={folder}", "mesh.sizes=[0.05]"])
+    both = studies.run_study(cfg)[0]
+    one = studies.run_study(cfg, comm=MPI.COMM_SELF)[0] if comm.rank == 0 else None
+    failures = []
+    if comm.rank == 0:
+        for column in ("contact_force", "half_width", "peak_pressure", "force_err"):
+            if not math.isclose(both.extra[column], one.extra[column], rel_tol=1e-9):
+                failures.append((column, both.extra[column], one.extra[column]))
+        x = [(r["x"], r["pressure"]) for r in both.profile]
+        y = [(r["x"], r["pressure"]) for r in one.profile]
+        if len(x) != len(y) or not np.allclose(x, y, rtol=1e-9, atol=1e-14):
+            failures.append("profile")
+    assert not comm.allreduce(failures)
