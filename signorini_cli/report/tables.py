@@ -407,7 +407,8 @@ def caption_of(name, cfg=None, variational=False, slug=False):
         theta = "" if cfg.epsilon.theta == 1 and law.p != 0 else latex.constant(cfg.epsilon.theta)  # 1 h: h
         law = law.tex.format(p=cfg.epsilon.p).strip()
         parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$"]
-    parts += [_problem(cfg.problem), r"contact boundary $\Gamma_C$: " + latex.escape(cfg.contact)]
+    parts += [part for part in [_problem(cfg.problem)] if part]
+    parts.append(r"contact boundary $\Gamma_C$: " + latex.escape(cfg.contact))
     if cfg.mesh.kind == "gmsh":
         parts.append(r"gmsh geometry \texttt{" + latex.escape(Path(cfg.mesh.geometry).stem) + "}")
     return f"{text}: " + ", ".join(parts)
@@ -426,6 +427,8 @@ def _problem(problem):
     typeset = [(symbol, _typeset(e)) for symbol, e in given if e is not None]
     if any(len(tex) > 160 for _, tex in typeset):  # unbreakable in a caption line
         return "the solution or data as written in the study's config"
+    if not typeset:  # no load and no Γ_C data (a Hertz contact: the gap alone)
+        return None
     words = "exact solution" if problem.exact is not None else "data"
     return words + " " + ", ".join(f"${symbol} = {tex}$" for symbol, tex in typeset)
 
