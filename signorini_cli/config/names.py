@@ -34,8 +34,6 @@ COLUMNS = {
     "epsilon": Name("ε", r"$\varepsilon$", "the penalty parameter"),
     "newton_its": Name("its", "its", "Newton iterations"),
     "time_s": Name("time", "time", "wall time of the level in seconds"),
-    "alpha": Name("α", r"$\alpha$", ""),
-    "p": Name("p", "$p$", ""),
     # a Hertz contact (hertz: {radius}): measured, Hertz's closed form, relative error
     "half_width": Name("a_h", "$a_h$", "the contact half-width"),
     "half_width_hertz": Name("a(F_h)", "$a(F_h)$", "Hertz's half-width under the force $F_h$"),
@@ -45,6 +43,8 @@ COLUMNS = {
     "peak_pressure_err": Name("p err", r"$|p_h-p_0|/p_0$", "the peak pressure's relative error"),
     "force_hertz": Name("F(a_h)", "$F(a_h)$", "Hertz's force for the half-width $a_h$"),
     "force_err": Name("F err", r"$|F_h-F|/F$", "the force's relative error"),
+    "alpha": Name("α", r"$\alpha$", ""),
+    "p": Name("p", "$p$", ""),
 }
 HERTZ = ("contact_force",) + tuple(c for c in COLUMNS if c.startswith(("half_width", "peak_pressure", "force_")))
 

@@ -83,8 +83,7 @@ def test_figure_fit_is_the_verdicts_rate_also_with_a_log_factor(make_config):
     (l2,) = verdict.summarize(make_config(alpha=3.0), levels).norms
     with plots.styled():
         fig = plots.convergence(rate_table(levels), {"L2": 2.0}, fit_levels=3)
-    legend = fig.axes[0].get_legend().get_texts()[0].get_text()
-    assert legend.startswith(rf"$\|u-u_h\|_{{L^2}}$  (fit {l2.observed:.2f}")
+    assert fig.axes[0].get_legend().get_texts()[0].get_text().endswith(f"(fit {l2.observed:.2f})")
     assert round(l2.observed, 2) != round(l2.log_corrected, 2)  # the other fit would show another number
 
 
