@@ -54,9 +54,10 @@ def test_run_passes_each_level_u_h_and_writes_nothing(raw_config, tmp_path, comm
     cfg = load(raw_config, output__dir=str(tmp_path / "results"))
     seen = []
 
-    def on_level(level, u_h):
+    def on_level(level, u_h, scene):
         x = ufl.SpatialCoordinate(u_h.function_space.mesh)
-        seen.append((level.n, measure.errors(u_h, ufl.sin(2 * np.pi * x[0]) * (1 - x[1]) ** 2, level.h)["L2"]))
+        u_exact = ufl.sin(2 * np.pi * x[0]) * (1 - x[1]) ** 2
+        seen.append((level.n, measure.errors(u_h, u_exact, level.h, scene.error_degree)["L2"]))
 
     study = run(cfg, on_level=on_level, comm=comm)
     assert [n for n, _ in seen] == [row["N"] for row in study.rows] == [4, 8]
