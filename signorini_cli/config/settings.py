@@ -129,7 +129,7 @@ def _study_type(cfg, raw, pde, study):
         if key in raw:
             raise ConfigError(key, f"not used by study_type {study.NAME}{hint}")
     if study.VI:
-        pde.check_vi(cfg.problem, study.NAME)
+        pde.check_vi(cfg.problem, study)
     cfg = study.check_config(cfg, raw)
     if not study.FIELDS and cfg.output.fields:
         writers = units.takers(units.STUDY_TYPES, lambda unit: unit.FIELDS and not unit.POINTS)
