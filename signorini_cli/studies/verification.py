@@ -122,8 +122,9 @@ class Verifier:
         msh = domain.mesh
         problem_module = problem_of(self.cfg)
         f, g = problem_module.data(self.cfg, msh, level.eps, forms.u_exact, ufl.FacetNormal(msh))
-        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": problem_module.QUADRATURE_DEGREE})
-        ds_c = domain.ds_c(problem_module.QUADRATURE_DEGREE)  # g u_h: smooth data times u_h
+        degree = domain.quadrature[0] if domain.quadrature else problem_module.QUADRATURE_DEGREE  # the solve's
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
+        ds_c = domain.ds_c(degree)  # g u_h: smooth data times u_h
         return measure.energy(u_h, problem_module.on_mesh(f, msh), g, level.eps, dx, ds_c, penalty)
 
     def _columns(self, level, errors, quantities, wanted, has_contact):
