@@ -1,10 +1,12 @@
 """The checks a study passes before its first solve, the same for a single study and for every point of a
 map: the finest level fits in memory, PETSc takes the user's options on a small system, the contact rule
-integrates alpha, gmsh meshes the geometry. What they refuse is bad input (ConfigError), found before any
-file is written."""
+integrates alpha, gmsh meshes the geometry (and for a map's points their data on the coarsest level). What
+they refuse is bad input (ConfigError), found before any file is written."""
+from dolfinx import fem
+
 from ..config import map as map_config
-from ..meshing import geometries
-from ..problems import contact
+from ..meshing import geometries, meshes
+from ..problems import contact, registry
 from ..solve import preflight
 from . import resources
 
@@ -17,18 +19,20 @@ def before_solving(cfg, comm, memory=True, copies=1):
 
 
 def map_points(cfg, chosen, comm, memory=True, copies=1):
-    """before_solving for each chosen point of a map, each check once per distinct input it reads; the
-    ConfigError names the point (and the varied key at fault)."""
-    for reads, check in checks(memory, copies):
-        seen = set()
-        for k in chosen:
-            point = cfg.map.studies[k]
-            if repr(reads(point)) not in seen:
-                seen.add(repr(reads(point)))
-                try:
-                    check(point, comm)
-                except map_config.ConfigError as err:
-                    raise at_point(cfg, k, err) from None
+    """before_solving for each chosen point of a map, each check once per distinct input it reads, and the
+    point's data on its coarsest level as its first level checks them (a single study refuses them there,
+    before any file is kept); the ConfigError names the point (and the varied key at fault)."""
+    with registry.checked_once(), meshes.kept():
+        for reads, check in checks(memory, copies) + [(_posed, _data)]:
+            seen = set()
+            for k in chosen:
+                point = cfg.map.studies[k]
+                if repr(reads(point)) not in seen:
+                    seen.add(repr(reads(point)))
+                    try:
+                        check(point, comm)
+                    except map_config.ConfigError as err:
+                        raise at_point(cfg, k, err) from None
 
 
 def checks(memory=True, copies=1):
@@ -54,6 +58,19 @@ def _options(cfg, comm):
 
 def _contact(cfg):
     return cfg.contact_quadrature, cfg.alpha, getattr(cfg, "limit", None)
+
+
+def _posed(cfg):
+    return cfg.mesh, cfg.contact, cfg.problem, cfg.epsilon, getattr(cfg, "material", None)
+
+
+def _data(cfg, comm):
+    """The data of cfg's coarsest level checked as its solve checks them (problems/posed.py)."""
+    domain = meshes.build(cfg.mesh, cfg.contact, cfg.mesh.levels[0], comm)
+    eps_value = cfg.epsilon(domain.h)
+    eps = fem.Constant(domain.mesh, eps_value)
+    u_exact = registry.problem_of(cfg).exact_solution(cfg, domain.mesh, eps) if cfg.problem.exact else None
+    registry.check_posed(cfg, domain, u_exact, eps_value)
 
 
 def _meshes(cfg, comm):

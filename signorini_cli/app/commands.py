@@ -11,9 +11,9 @@ import yaml
 from mpi4py import MPI
 
 from .. import config, studies
-from ..analysis import rates
+from ..analysis import rates, verdict
 from ..config import ConfigError
-from ..record import results, resume
+from ..record import csvfile, results, resume
 from ..report import plots, progress, tables, verdicts
 from ..solve import solver
 from ..system import errors
@@ -103,17 +103,32 @@ def report_study(args):
                   "per_norm": args.per_norm}
         folder = Path(args.output or study.folder)
         beside = args.columns and folder.resolve() == study.folder.resolve()
-        written = []
+        written, summary = [], recorded_verdict(study, cfg)
         if MPI.COMM_WORLD.rank == 0:  # other columns beside the study's own files, never over them
             written = tables.write(study, cfg, digits, plots=not args.no_plots, folder=folder, columns=columns,
-                                   figure=figure, suffix=columns_suffix(args.columns) if beside else "")
+                                   figure=figure, suffix=columns_suffix(args.columns) if beside else "",
+                                   summary=summary)
             table = tables.terminal(study, cfg) if columns is None else tables.format_table(study.rows, cfg, columns)
     except (ConfigError, OSError) as err:
         return fail(args.path, err)
     if MPI.COMM_WORLD.rank == 0:
-        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
-              tables.wrote((p.relative_to(folder) for p in written), folder)])
+        shown = [verdicts.format_summary(summary)] if summary is not None and columns is None else []
+        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table] + shown
+             + [tables.wrote((p.relative_to(folder) for p in written), folder)])
     return EXIT_OK
+
+
+def recorded_verdict(study, cfg):
+    """The verdict the run recorded (its summary.csv), as run printed it; None without one (a type without a
+    verdict, a study read from rates.csv alone, a summary.csv of an older format)."""
+    path = study.folder / "summary.csv"
+    if cfg is None or not path.exists():
+        return None
+    try:
+        return verdict.from_rows(cfg, csvfile.read(path))
+    except (csvfile.Damaged, KeyError):
+        logger.warning("%s: no verdict read (damaged, or written by an older version)", path)
+        return None
 
 
 def columns_suffix(columns):

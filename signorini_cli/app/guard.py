@@ -312,8 +312,12 @@ class FolderLock:
         if problem is not None:
             return problem
         try:
-            self.made = [p for p in (*reversed(self.folder.parents), self.folder) if not p.exists()]
-            self.folder.mkdir(parents=True, exist_ok=True)
+            for path in (*reversed(self.folder.parents), self.folder):
+                try:  # only the folders this run makes itself: another run may make the same ones meanwhile
+                    path.mkdir()
+                    self.made.append(path)
+                except FileExistsError:
+                    pass
             self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
             fcntl.flock(self.fd, mode | fcntl.LOCK_NB)
             return None

@@ -20,6 +20,7 @@ from . import checks, guard
 ENDED = ("complete", "failed")  # a point whose status.txt starts so has ended: --resume keeps it
 CONFIG_FILE = "config.yaml"  # the resolved config, beside a map's and every point's results
 ROOT_VARIABLES = ("OMPI_ALLOW_RUN_AS_ROOT", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM")
+OVERSUBSCRIBE = "OMPI_MCA_rmaps_base_oversubscribe"
 
 
 def relaunch(jobs):
@@ -29,13 +30,20 @@ def relaunch(jobs):
     if mpirun is None:
         raise ConfigError("map.jobs", f"{jobs} workers run under mpirun, which is not on PATH; run the map "
                                       "under mpirun -n N yourself, or set map.jobs: 1")
+    cpus = len(os.sched_getaffinity(0))
+    if jobs > cpus:
+        raise ConfigError("map.jobs", f"{jobs} workers, but this process may use {cpus} CPUs; set map.jobs <= "
+                                      f"{cpus}, or run the map under mpirun -n N yourself")
     sys.stdout.flush()
     # os.environ is the environment this process started with: MPI's start-up added variables of its own
     # to the C environment that would make mpirun take the new job for this one
     env = dict(os.environ)
     if os.geteuid() == 0:  # Open MPI's mpirun refuses root (a 13-line banner, exit 1) unless told twice
         env.update({name: env.get(name, "1") for name in ROOT_VARIABLES})
-    os.execve(mpirun, [mpirun, "-n", str(jobs), *sys.orig_argv], env)
+    # Open MPI counts a slot per core, not per hardware thread: up to the CPUs this process may use are fine
+    env.setdefault(OVERSUBSCRIBE, "1")
+    # -q: no Open MPI banner after a rank's exit status 2 or 1: the ranks said it in one line
+    os.execve(mpirun, [mpirun, "-q", "-n", str(jobs), *sys.orig_argv], env)
 
 
 # who may write a map folder at once: the refusal's line says it

@@ -65,7 +65,11 @@ def _exact_solves(raw, path, exact):
 
 
 def check_config(cfg, raw):
-    """Rules across sections: none beyond its problem block."""
+    """Rules across sections: the hertz measure is elasticity's."""
+    measures = cfg.verification.measures or ()
+    if "hertz" in measures:
+        raise ConfigError(f"verification.measures[{measures.index('hertz')}]", "hertz measures an elastic Hertz "
+                                                                                "contact (pde: elasticity)")
     return cfg
 
 

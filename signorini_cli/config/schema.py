@@ -157,6 +157,9 @@ class Problem:
                                       only="only with pde: elasticity")
     normal: tuple = key(None, "elasticity: the obstacle's unit normal, d numbers (default: Γ_C's outward normal)",
                         only="only with pde: elasticity")
+    hertz_radius: float = key(None, "elasticity: the radius R of a Hertz contact (a cylinder in 2-D, a sphere in "
+                                    "3-D): its half-width, peak pressure and force beside Hertz's (data only)",
+                              example=1.0, only="only with pde: elasticity and no exact")
 
 
 @dataclass(frozen=True)

@@ -232,3 +232,59 @@ def rigid_motions(V):
             b[d + k][:, i], b[d + k][:, j] = -x[:, j], x[:, i]
     la.orthonormalize(basis)
     return PETSc.NullSpace().create(vectors=basis)
+
+
+# --- fields for ParaView: stress, von Mises, contact pressure ------------------------------------------
+
+def stress(cfg, u):
+    """σ(u) (UFL) with the config's material."""
+    mu, lmbda = lame(cfg.material)
+    return sigma(u, mu, lmbda)
+
+
+def von_mises(cfg, u):
+    """(3/2 s:s)^(1/2) of the deviator s of the 3×3 stress; in 2-D plane strain σ_zz = λ div u."""
+    mu, lmbda = lame(cfg.material)
+    s = sigma(u, mu, lmbda)
+    if len(u) == 2:
+        s = ufl.as_matrix([[s[0, 0], s[0, 1], 0], [s[1, 0], s[1, 1], 0], [0, 0, lmbda * ufl.div(u)]])
+    dev = ufl.dev(s)
+    return ufl.sqrt(1.5 * ufl.inner(dev, dev))
+
+
+def numpy_exact(cfg):
+    """u_ex(points, eps) in numpy, points (..., 3) -> (..., d)."""
+    def evaluate(points, eps_value):
+        coords = np.moveaxis(points, -1, 0)
+        variables = dict(zip(("x", "y", "z"), coords), eps=eps_value)
+        functions = expressions.numpy_functions()
+        return np.stack([np.broadcast_to(c(variables, functions), coords[0].shape) for c in cfg.problem.exact], -1)
+    return evaluate
+
+
+def pressure_values(cfg, term, eps_value, u_exact=False):
+    """(1/ε)[w]_+^α at the Γ_C facets' vertices (facets, d): of w_h = u_h·n − g0, or of w_ex with `u_exact`
+    (the compliance law's pressure σ_n = −(1/ε)[w]_+^α without data, the manufactured one's ĝ_n aside)."""
+    if u_exact:
+        u = numpy_exact(cfg)(term.points, eps_value)
+        w = np.einsum("fvk,fk->fv", u, term.normal) - term.gap
+    else:
+        w = term.values(term.u_h.x.array)
+    return np.maximum(w, 0.0) ** cfg.alpha / eps_value
+
+
+def on_vertices(term, values):
+    """(sums, counts): `values` (facets, vertices) at the Γ_C facets' vertices summed per vertex, and how many
+    facets each vertex has, as local arrays of the scalar P1 space (ghosts included, owned facets summed across
+    ranks): the space and its arrays for fields and nodal pressures."""
+    from dolfinx.cpp.la import ScatterMode
+    Q, blocks = term.u_h.function_space.sub(0).collapse()
+    scalar_of = np.empty(len(term.u_h.x.array) // term.bs, dtype=np.int32)
+    scalar_of[np.asarray(blocks) // term.bs] = np.arange(len(blocks))
+    sums, counts = fem.Function(Q), fem.Function(Q)
+    np.add.at(sums.x.array, scalar_of[term.dofs], values)
+    np.add.at(counts.x.array, scalar_of[term.dofs], 1.0)
+    for f in (sums, counts):
+        f.x.scatter_reverse(ScatterMode.add)
+        f.x.scatter_forward()
+    return sums, counts

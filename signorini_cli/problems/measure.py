@@ -54,7 +54,7 @@ def difference_norms(u_h, u):
     V = u.function_space
     dx = ufl.Measure("dx", domain=V.mesh, metadata={"quadrature_degree": product_degree(V)})
     e = u - u_h
-    return {"L2": np.sqrt(abs(integrate(e**2, dx))),
+    return {"L2": np.sqrt(abs(integrate(ufl.inner(e, e), dx))),
             "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
 
 

@@ -4,11 +4,11 @@ import contextlib
 import dataclasses
 
 from ..meshing import meshes
-from . import compliance, elasticity, element, posed, vi
+from . import compliance, elastic_vi, elasticity, element, posed, vi
 
 # cfg.problem.pde -> the compliance problem's module, and the module of its ε → 0 limit (the Signorini VI)
 PROBLEMS = {"poisson": compliance, "elasticity": elasticity}
-LIMITS = {"poisson": vi}
+LIMITS = {"poisson": vi, "elasticity": elastic_vi}
 
 
 def problem_of(cfg, limit=False):

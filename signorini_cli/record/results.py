@@ -89,9 +89,11 @@ def write_status(folder, status):
 
 
 def read_status(folder):
-    """A study folder's status.txt line ('' when absent)."""
-    path = Path(folder) / STATUS_FILE
-    return path.read_text().strip() if path.exists() else ""
+    """A study folder's status.txt line ('' when absent, also when another run removes it as it is read)."""
+    try:
+        return (Path(folder) / STATUS_FILE).read_text().strip()
+    except FileNotFoundError:
+        return ""
 
 
 def restore(cfg, levels, status, mpi_size):

@@ -10,7 +10,7 @@ from ..analysis import rates
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
 from ..record import csvfile
-from . import latex, verdicts
+from . import latex, pressure, verdicts
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
 TERMINAL_WIDTH = 120  # columns of a terminal table; wider ones wrap into blocks
@@ -36,6 +36,7 @@ def choose(rows, columns="paper", proven=None):
         lead = [c for c in PAPER_LEADING if c in rows[0] and not (c == "h" and h_per_N(rows))]
         if "epsilon" in lead and all(row["epsilon"] == 0 for row in rows):  # the Signorini problem: no ε,
             lead = [c for c in lead if c != "epsilon"] + [c for c in ("contact_measure",) if c in rows[0]]
+        lead += [c for c in names.HERTZ if c in rows[0] and "half_width" in rows[0]]  # a Hertz scene's own figures
         return lead, paper_norms(measured, proven or {})  # its contact set's measure instead
     unknown = [c for c in columns if c not in rows[0]]
     if unknown:
@@ -448,6 +449,8 @@ def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""
                                              plotting.WIDTH_PT) for suffix in (".png", ".pdf")]
         elif fig.kind == "comparison":
             written += plotting.write_comparison(fig.data, folder, figure.get("width"))
+        elif fig.kind == "pressure":
+            written += pressure.write(fig.data, folder / Path(fig.name).parent, figure.get("width"))
     return written
 
 

@@ -133,7 +133,8 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     phases.deduct("errors", reference_s)
     if cfg.output.fields:
         with phases("output"):
-            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
+            elastic = (cfg, forms, eps_value) if forms.gap is not None else None
+            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact, elastic)
     measuring = reference_s + (outcome.floor_s or 0.0)  # the linear floor too: a measurement, not the study's work
     level.time_s = comm.allreduce(time.perf_counter() - start - measuring, op=MPI.MAX)
     level.timings = timing_columns(outcome, phases, comm, mesh_peak_mb)
@@ -157,9 +158,11 @@ def timing_columns(outcome, phases, comm, mesh_peak_mb):
 
 
 def tables(cfg, levels):
-    """The record's tables, the main one first: rates and work_precision."""
+    """The record's tables, the main one first: rates, work_precision and the Γ_C pressure of each level."""
     rows = rate_table(levels)
-    return {"rates": rows, "work_precision": work_precision_rows(rows)}
+    pressure = [row for lv in levels for row in lv.profile]
+    named = {"rates": rows, "pressure": pressure} if pressure else {"rates": rows}
+    return dict(named, work_precision=work_precision_rows(rows))
 
 
 def summary(cfg, levels):
@@ -178,8 +181,11 @@ def parts(cfg, levels):
 
 
 def reported(cfg, named):
-    """The rate table and its convergence figures."""
-    return [Table("rates", named["rates"], paper=True)], [Figure("convergence", "convergence", named["rates"])]
+    """The rate table and its convergence figures; the contact pressure along Γ_C, level by level."""
+    figures = [Figure("convergence", "convergence", named["rates"])]
+    if named.get("pressure"):
+        figures.append(Figure("pressure", "pressure", (named["pressure"], named["rates"])))
+    return [Table("rates", named["rates"], paper=True)], figures
 
 
 def compared(named):

@@ -70,6 +70,9 @@ def one_line(capsys):
                  "solver.petsc_options: point 0 (alpha=2): PETSc rejects these options", id="petsc-option"),
     pytest.param({"contact_quadrature": "exact"}, {"alpha": [2, 1023]},
                  "map.grid.alpha: point 1 (alpha=1023): alpha: 1023 is above 1022", id="alpha-exact-rule"),
+    pytest.param({}, {"problem.exact": ["x*(1-y)", "sin(sqrt(x*x+y*y))/sqrt(x*x+y*y)"]},
+                 "map.grid.problem.exact: point 1 (problem.exact=sin(sqrt(x*x+y*y))/sqrt(x*x+y*y)): problem.exact: "
+                 "sin(sqrt(x*x+y*y))/sqrt(x*x+y*y) is nan at (0, 0)", id="data-not-finite"),
     pytest.param({"map": {"ranks_per_point": 2}}, {"alpha": [2]},
                  "map.ranks_per_point: must divide the 1 MPI ranks, got 2", id="ranks-per-point"),
 ])
@@ -99,9 +102,20 @@ def test_jobs_as_root_give_mpirun_its_root_variables(monkeypatch):
     monkeypatch.setattr(os, "execve", lambda path, argv, env: started.update(argv=argv, env=env))
     for name in maps.ROOT_VARIABLES:
         monkeypatch.delenv(name, raising=False)
-    maps.relaunch(2)
-    assert started["argv"][1:3] == ["-n", "2"]
+    maps.relaunch(1)
+    assert started["argv"][1:4] == ["-q", "-n", "1"]
     assert all(started["env"][name] == "1" for name in maps.ROOT_VARIABLES)
+
+
+def test_more_jobs_than_cpus_refused(tmp_path, capsys):
+    """map.jobs above the CPUs this process may use: one line (mpirun refused it with a 10-line banner)."""
+    cpus = len(os.sched_getaffinity(0))
+    path = write_map(tmp_path / "cfg", {"alpha": [2]}, map={"jobs": cpus + 1})
+    assert cli.main(["run", path, "--output", str(tmp_path / "out")]) == cli.EXIT_BAD_INPUT
+    assert one_line(capsys) == (f"signorini: error: {path}: map.jobs: {cpus + 1} workers, but this process may "
+                                f"use {cpus} CPUs; set map.jobs <= {cpus}, or run the map under mpirun -n N "
+                                "yourself\n")
+    assert not (tmp_path / "out").exists()
 
 
 # --- --resume of a complete map with levels added ---------------------------------------------------------
