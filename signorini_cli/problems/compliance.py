@@ -111,8 +111,9 @@ class Trace:
         """The potential ½∫|∇u_h|² − ∫ f u_h + (contact_energy − ∫_Γc g u_h)/ε (measure.energy)."""
         msh = self.domain.mesh
         f, g = data(self.cfg, msh, eps, self.w_exact, ufl.FacetNormal(msh))
-        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
-        ds_c = self.domain.ds_c(QUADRATURE_DEGREE)  # g u_h: smooth data times u_h
+        degree = self.domain.quadrature[0] if self.domain.quadrature else QUADRATURE_DEGREE  # the solve's
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
+        ds_c = self.domain.ds_c(degree)  # g u_h: smooth data times u_h
         return measure.energy(self.w_h, forms.on_mesh(f, msh), g, eps, dx, ds_c, contact_energy)
 
 

@@ -12,7 +12,7 @@ from dolfinx import fem
 from ..config import MESH_KINDS
 from ..meshing import meshes, refinement
 from ..meshing.meshes import CONTACT
-from ..problems import measure
+from ..problems import measure, registry
 from ..problems.registry import method_of, problem_of
 from ..solve import strategies
 from ..solve.transfer import transfer
@@ -94,6 +94,8 @@ def solve(cfg, domain, u, eps_value, previous):
     strategy from `previous` (a level's u_h: the nested guess); u = 0 on Γ_D (data-only scenes)."""
     eps = fem.Constant(domain.mesh, eps_value)
     discretisation = problem_of(cfg)
+    # the data's quadrature at the reference's own h, as a level of that size takes it (the family's profile)
+    domain = dataclasses.replace(domain, quadrature=registry.check_posed(cfg, domain, None, eps_value))
     forms = discretisation.forms(cfg, domain, u, eps)
     bcs = [discretisation.dirichlet_condition(u.function_space, domain, None)]
     problem = strategies.problem(forms, u, bcs, discretisation.continued(eps), eps_value, cfg.dimension)

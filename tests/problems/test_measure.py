@@ -12,7 +12,6 @@ from signorini_cli.meshing import meshes
 from signorini_cli.meshing.meshes import CONTACT
 from signorini_cli.problems import contact, elasticity, element, measure
 from signorini_cli.studies import refinement, verification
-from signorini_cli.studies import reference
 
 # (mesh config, linear u with {u > 0} ∩ Γ_C of known measure, that measure, max of u on Γ_C)
 CASES = [

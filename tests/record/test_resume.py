@@ -1,6 +1,5 @@
 """--resume: finished levels come back from study.h5 unchanged; a changed config is refused by name."""
 import csv
-import shutil
 from pathlib import Path
 
 import h5py
