@@ -17,6 +17,8 @@ import numpy as np
 
 import bench_check
 import provenance
+from signorini_cli.analysis import rates
+from signorini_cli.record import csvfile, results
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "bench" / "configs"
@@ -59,7 +61,6 @@ BEST_OF = {"square": 2, "square-2-ranks": 2}
 TARGETS = {"floor_ratio": 2.0, "exponent": 1.15, "speedup": 1.6, "kb_per_dof": 1.0, "study_over_floors": 3.0,
            "largest_rank_4": 0.45, "contact_share": 0.10}
 WHOLE_REPEATS = 5  # the whole default run against the tutorial-style scripts: median of 5 runs in turn
-FIT_LEVELS = 3  # the exponent of solve time against dofs: least squares over the last three levels
 PHASE_COLUMNS = ("t_mesh", "t_forms", "t_transfer", "t_assemble_residual", "t_assemble_jacobian", "t_contact",
                  "t_linear",
                  "t_pc_setup", "t_newton", "t_linear_floor", "floor_ratio", "t_errors", "t_output", "time_s")
@@ -137,24 +138,14 @@ def run_once(name, config, ranks, overrides):
 
 
 def read_run(name, config, ranks, overrides):
-    """A finished run's rows (rates.csv as floats), process wall time and exit status."""
+    """A finished run's rows (its record read back), process wall time and exit status."""
     out = RUNS / name
     facts = json.loads((out / "bench.json").read_text())
     study = next(path for path in out.iterdir() if path.is_dir())
-    with open(study / "rates.csv") as f:
-        rows = [{k: _number(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    rows = results.load(study).rows
     for row in rows:
         row["kb_per_dof"] = row["peak_memory_mb"] * 2**20 / 1000 / row["dofs"]
     return dict(facts, rows=rows, ranks=ranks, overrides=overrides)
-
-
-def _number(text):
-    if text in ("true", "false"):
-        return text == "true"
-    try:
-        return float(text)
-    except ValueError:
-        return text if text else None
 
 
 def write_csv(path, runs, machine):
@@ -167,9 +158,8 @@ def write_csv(path, runs, machine):
 
 
 def exponent(rows, column="t_newton"):
-    """Least-squares p in `column` ~ dofs^p over the last FIT_LEVELS levels."""
-    last = rows[-FIT_LEVELS:]
-    return float(np.polyfit(np.log([r["dofs"] for r in last]), np.log([r[column] for r in last]), 1)[0])
+    """Least-squares p in `column` ~ dofs^p over the last rates.FIT_LEVELS levels."""
+    return rates.slope([r["dofs"] for r in rows], [r[column] for r in rows])
 
 
 def study_time(rows):
@@ -335,7 +325,7 @@ def study_section(name, result):
     lines = [f"## {name}", "", f"{result['ranks']} rank(s), {overrides}; exit status {result['status']}, "
              f"process wall time {result['wall_s']:.1f} s (imports and JIT included), study time "
              f"{study_time(rows):.1f} s, sum of linear floors {floors(rows):.2f} s; exponent of t_newton vs dofs "
-             f"over the last {FIT_LEVELS} levels {exponent(rows):.2f}.{best_of(result)}", "",
+             f"over the last {rates.FIT_LEVELS} levels {exponent(rows):.2f}.{best_of(result)}", "",
              "| N | dofs | Newton its | linear its | L2 | " + " | ".join(c[2:] if c.startswith("t_") else c
                                                                   for c in PHASE_COLUMNS) + " | peak MiB | kB/dof |",
              "|---" * (7 + len(PHASE_COLUMNS)) + "|"]
@@ -493,11 +483,7 @@ def timed_together(commands, out):
 def solves_s(folder):
     """The levels' own wall time, summed over every point of a map folder (or over one study folder)."""
     paths = sorted(Path(folder).glob("points/*/rates.csv")) or [Path(folder) / "rates.csv"]
-    total = 0.0
-    for path in paths:
-        with open(path) as f:
-            total += sum(float(row["time_s"]) for row in csv.DictReader(f))
-    return total
+    return sum(row["time_s"] for path in paths for row in csvfile.read(path))
 
 
 def map_runs(repeats=3):

@@ -2,12 +2,9 @@
 docs/elasticity.md from the runs; `--bench` writes the elastic section of bench/results.md. Every number in
 those pages comes from here."""
 import argparse
-import csv
-import io
 import math
 import re
 import sys
-from contextlib import redirect_stdout
 from pathlib import Path
 
 import numpy as np
@@ -15,10 +12,11 @@ from mpi4py import MPI
 
 import provenance
 from dolfinx import fem
+import signorini_cli
 from signorini_cli import config
-from signorini_cli.app import cli
 from signorini_cli.meshing import meshes
 from signorini_cli.problems import elasticity
+from signorini_cli.record import results
 from signorini_cli.solve import strategies
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -38,17 +36,12 @@ BENCH_MARK = ("<!-- elasticity: make bench-elasticity -->", "<!-- /elasticity --
 
 
 def run(path, out, overrides=()):
-    """Run a config through the command line into `out`; return (exit status, rates.csv rows)."""
-    args = ["run", str(path), "--output", str(out), "--force", "--quiet"]
-    for item in overrides:
-        args += ["--set", item]
-    with redirect_stdout(io.StringIO()):
-        status = cli.main(args)
-    if status >= 2:
-        raise SystemExit(f"{path}: exit status {status}")
-    cfg = config.load(path, [f"output.dir={out}", *overrides])
-    with open(cfg.output_dir / "rates.csv") as f:
-        return status, list(csv.DictReader(f)), cfg.output_dir
+    """Run a config through the API into `out`, its record written as `signorini run` writes it; return
+    (exit status as `signorini run` gives it: 0, or 1 when a level did not converge, rate-table rows as
+    recorded, folder)."""
+    study = signorini_cli.run(config.load(path, [f"output.dir={out}", *overrides]), write=True)
+    folder = study.config.output_dir
+    return int(not (study.converged and study.met)), results.load(folder).rows, folder
 
 
 def number(text):
@@ -60,7 +53,7 @@ def rate_table(rows, columns):
     head = "| N | h | ε | its | " + " | ".join(f"{c} | rate" for c in columns) + " |"
     lines = [head, "|" + "---|" * (4 + 2 * len(columns))]
     for r in rows:
-        cells = [r["N"], f"{number(r['h']):.3e}", f"{number(r['epsilon']):.1e}", r["newton_its"]]
+        cells = [str(r["N"]), f"{number(r['h']):.3e}", f"{number(r['epsilon']):.1e}", str(r["newton_its"])]
         for c in columns:
             rate = number(r.get(f"rate_{c}"))
             cells += [f"{number(r[c]):.3e}", "-" if math.isnan(rate) else f"{rate:.2f}"]
@@ -75,7 +68,7 @@ def manufactured(folders):
         status, rows, folder = run(CONFIGS / name, RUNS / "manufactured")
         folders.append(folder)
         cfg = config.load(CONFIGS / name)
-        converged = all(r["converged"] == "true" for r in rows)
+        converged = all(r["converged"] for r in rows)
         lines += ["", f"### {name}: {cfg.description}", "",
                   f"{'every level converged' if converged else '**a level did not converge**'} (exit status {status}).",
                   ""]

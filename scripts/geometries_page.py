@@ -5,16 +5,15 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
 
 import provenance
 from signorini_cli import config
+from signorini_cli.analysis import rates
 from signorini_cli.record import csvfile
 
 # |Γ_C| of the exact domain, by geometry (or .msh file stem): the figure the discrete |Γ_C,h| approaches
 EXACT_GAMMA_C = {"unit_square": 1.0, "l_shape": 1.0, "unit_cube": 1.0, "half_disk": math.pi,
                  "half_ball": 2 * math.pi, "quarter_annulus": math.pi / 2}
-FIT_LEVELS = 3  # least-squares slope over the last three levels
 
 
 def rows(folder, cfg):
@@ -26,21 +25,18 @@ def exact_gamma_c(cfg):
 
 
 def fitted(rows, column):
-    """Slope of log(column) against log(h) over the last FIT_LEVELS levels, or None."""
-    pairs = [(float(r["h"]), float(r[column])) for r in rows[-FIT_LEVELS:] if r.get(column)]
-    if len(pairs) < 2 or any(v <= 0 for _, v in pairs):
+    """Slope of log(column) against log(h) over the last rates.FIT_LEVELS levels, or None."""
+    last = rows[-rates.FIT_LEVELS:]
+    if any(r.get(column) is not None and float(r[column]) <= 0 for r in last):
         return None
-    h, e = np.log(np.array(pairs)).T
-    return np.polyfit(h, e, 1)[0]
+    return rates.slope([float(r["h"]) for r in last], [float(r[column]) if r.get(column) else None for r in last])
 
 
 def gap_rates(serial, exact):
     """|Γ_C| − |Γ_C,h| per level and its rate in h (None where undefined)."""
     gaps = [exact - float(r["gamma_c_measure"]) for r in serial]
     h = [float(r["h"]) for r in serial]
-    rates = [None] + [math.log(g0 / g1) / math.log(h0 / h1) if g0 > 1e-13 and g1 > 1e-13 and h0 != h1 else None
-                      for g0, g1, h0, h1 in zip(gaps, gaps[1:], h, h[1:])]
-    return gaps, rates
+    return gaps, rates.observed(h, gaps, [g > 1e-13 for g in gaps])
 
 
 MESH_COLUMNS = ("h", "h_min", "gamma_c_measure", "gamma_c_quasi_uniformity")
@@ -88,7 +84,7 @@ def section(cfg, serial, parallel):
            + (f", exact \\|Γ_C\\| = {exact:.6f}." if exact else "."), ""] + lines + [""]
     fits = [f"{n} {fitted(serial, n):.2f}" for n in norms if fitted(serial, n) is not None]
     if fits:
-        out.append(f"Least-squares rate over the last {FIT_LEVELS} levels: " + ", ".join(fits) + ".")
+        out.append(f"Least-squares rate over the last {rates.FIT_LEVELS} levels: " + ", ".join(fits) + ".")
     mesh_diff, same = parallel_difference(serial, parallel, MESH_COLUMNS)
     out.append(f"`mpirun -n 2`: same cells and dofs on every level: {'yes' if same else 'NO'}; largest relative "
                f"difference from the serial run of h, h_min, \\|Γ_C,h\\|, quasi-uniformity: {mesh_diff:.1e}"

@@ -22,8 +22,8 @@ complete refinement study in `results/<map>/points/<k>/`, run on 2 ranks as two 
 map colours the fitted rate minus the paper's proven rate (blue above, red below, white on it; ±1 saturates),
 writes the fitted rate in the cell, marks the verdict (o agrees, ^ exceeds, v below, x inconclusive) and
 greys the points the paper does not cover. Rates are fitted over the last three levels (`verification.fit_levels`);
-where the proven rate carries |ln h| (d = 2, alpha > 2) the verdict's rate is the fit of e/|ln h|, and the plain
-fit of e is given beside it. The problems are the manufactured ones of the shipped studies (u = sin(2 pi x)(1-y)^2
+the rate is the plain slope of log e against log h; where the proven rate carries |ln h| (d = 2, alpha > 2) the
+fit of e/|ln h| is given beside it. The problems are the manufactured ones of the shipped studies (u = sin(2 pi x)(1-y)^2
 in 2-D, sin(2 pi x) sin(pi y)(1-z)^2 in 3-D, contact on y = 0 resp. z = 0, data g making u exact at every eps):
 a map says where a rate holds on these problems, not in general.
 How to read the verdicts, and how to run a map of your own: docs/guide/maps.md.
@@ -115,9 +115,8 @@ def theta_alpha(rows):
         holding = [theta for theta, rate in rates if rate is not None and rate >= 2 - TOLERANCE]
         where = (f"at every theta from {min(holding):g} to {max(holding):g}" if len(holding) == len(rates)
                  else f"at theta = {', '.join(f'{t:g}' for t in holding) or 'none'} of {len(rates)}")
-        plain = [r["rate_L2_plain"] for r in group]
-        fit = (f"fit of e/|ln h| {_range(r for _, r in rates)} (plain fit of e {_range(plain)})"
-               if any(p != r for p, (_, r) in zip(plain, rates)) else f"fitted L2 rate {_range(r for _, r in rates)}")
+        logs = [r["rate_L2_log"] for r in group if r.get("rate_L2_log") is not None]
+        fit = f"fitted L2 rate {_range(r for _, r in rates)}" + (f" (fit of e/|ln h| {_range(logs)})" if logs else "")
         lines.append(f"alpha = {alpha}: {fit}; >= {2 - TOLERANCE:g} {where} (verdicts: {_verdicts(group)}).")
     return lines
 
@@ -149,8 +148,8 @@ def log_alpha(rows):
     """Map (d): the plain fit of e and the fit of e/|ln h|, side by side, per alpha."""
     lines = []
     for alpha, group in _by(rows, "alpha").items():
-        lines.append(f"alpha = {alpha}: L2 fit of e/|ln h| {_range(r['rate_L2'] for r in group)}, plain fit "
-                     f"of e {_range(r['rate_L2_plain'] for r in group)} (theta = "
+        lines.append(f"alpha = {alpha}: L2 plain fit of e {_range(r['rate_L2'] for r in group)}, fit of e/|ln h| "
+                     f"{_range(r.get('rate_L2_log') for r in group)} (theta = "
                      f"{_values(group, 'epsilon.theta')}; verdicts: "
                      f"{_verdicts(group)}).")
     return lines

@@ -1,14 +1,13 @@
 """docs/results-format.md from the writer: the file list, study.h5's format as record/h5.py describes it,
 and the outline of a study.h5 written by a fresh two-level study, read from the attributes it carries.
 Usage: python scripts/results_format_page.py > docs/results-format.md (make results-format)."""
-import contextlib
-import io
 import sys
 import tempfile
 from pathlib import Path
 
 import provenance
-from signorini_cli.app import cli
+import signorini_cli
+from signorini_cli import config
 from signorini_cli.record import h5
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "demo.yaml"
@@ -62,11 +61,10 @@ contact set, where the compliance term acts), 0 elsewhere. Open the `.xdmf` in P
 def example_run():
     """(provenance line, outline table) of the study.h5 a two-level run of configs/demo.yaml writes."""
     with tempfile.TemporaryDirectory() as out:
-        with contextlib.redirect_stdout(io.StringIO()):
-            status = cli.main(["run", str(CONFIG), "--output", out, "--quiet", "--set", "mesh.refinements=[4, 8]"])
-        if status != 0:
-            raise SystemExit(f"{CONFIG}: exit status {status}")
-        folder = Path(out) / "demo"
+        study = signorini_cli.run(config.load(CONFIG, [f"output.dir={out}", "mesh.refinements=[4, 8]"]), write=True)
+        if not study.converged:
+            raise SystemExit(f"{CONFIG}: a level did not converge")
+        folder = study.config.output_dir
         made, rows = provenance.line("results-format", [folder]), h5.outline(folder / h5.NAME)
     return made, ["| path | type, length | units | description |", "|---|---|---|---|"] + [
         f"| `{name}` | {kind} | {units or '–'} | {what} |" for name, kind, units, what in rows]

@@ -2,7 +2,6 @@
 sweep, and write docs/stability.md from the runs. Every number in that page comes from here."""
 import argparse
 import dataclasses
-import io
 import json
 import math
 import os
@@ -10,16 +9,15 @@ import platform
 import re
 import sys
 import time
-from contextlib import redirect_stdout
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 import provenance
+import signorini_cli
 from signorini_cli import config
-from signorini_cli.app import cli
+from signorini_cli.analysis import rates
 from signorini_cli.record import csvfile, h5
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -55,18 +53,14 @@ def run(path, out, overrides=()):
 
 
 def run_tables(path, out, overrides=()):
-    """Run one study as `run` does; return (exit status, {table name: rows}) of every CSV it wrote
-    (rates for refinement studies; sweep, fitted and reference for an ε-sweep)."""
+    """Run one study through the API, its record written as `run` writes it; return (exit status as `run` gives
+    it, {table name: rows}) of every CSV it wrote (rates for refinement studies; sweep, fitted and reference
+    for an ε-sweep)."""
     cfg = config.load(path, list(overrides) + [f"output.dir={out.root}"])
     status = reused(cfg) if out.reuse else None
     if status is None:
-        args = ["run", str(path), "--output", str(out.root), "--force", "--quiet"]
-        for item in overrides:
-            args += ["--set", item]
-        with redirect_stdout(io.StringIO()):
-            status = cli.main(args)
-    if status >= 2:  # bad input (2) is a bug of this script; interrupted (>= 128): the page would be half made
-        raise SystemExit(f"{path} {' '.join(overrides)}: exit status {status}")
+        study = signorini_cli.run(cfg, write=True)
+        status = int(not (study.converged and study.met))
     tables = {}
     for csv_path in sorted(cfg.output_dir.glob("*.csv")):
         tables[csv_path.stem] = csvfile.read(csv_path)
@@ -316,8 +310,8 @@ def condition_section(by_eps, by_h):
 
 
 def slope(x, y):
-    pairs = [(a, b) for a, b in zip(x, y) if a and b]
-    return float(np.polyfit(np.log([a for a, _ in pairs]), np.log([b for _, b in pairs]), 1)[0]) if len(pairs) > 1 else None
+    """Least-squares slope of log y against log x over every point."""
+    return rates.slope(x, y, k=len(x))
 
 
 # --- contact quadrature rules ---------------------------------------------------------------------

@@ -47,21 +47,22 @@ def page(cases):
              "normal residuals; with 3 levels the residual is the spread of the two successive rates itself), "
              "at least ± 0.02 (errors whose constant drifts by 3 % over three levels move their slope by "
              "ln(1.03)/ln 4 = 0.02; the demo's L2 constant e/h² drifts by 2.8 % over N = 32..128), "
-             "every successive rate between the fitted levels, and the limit they head to: the last rate plus "
-             "ρ/(1 − ρ) times its last change, ρ the ratio of the last two changes over all levels (2/3 when "
-             "only one change is known, at most 3/4). Rates r(h) = p + c h^q + … change by ρ = 2^-q per halving "
-             "of h; the demo's L2 rates change by ρ ≈ 0.6, which is why a one-step drift alone would call a "
-             "rate of 1.99 still rising toward 2 `below`.", "",
+             "every successive rate between the fitted levels, and the limit they head to: r(h) = p + c h^q through "
+             "the last two rates at their h (√(h_{k−1} h_k)), q from the last three (log₂(3/2) when only one "
+             "change is known, at least log₂(4/3)); in h, so any refinement ratios extrapolate. For halving h "
+             "that is the last rate plus ρ/(1 − ρ) times its last change, ρ = 2^-q.", "",
              "A proven rate is an upper bound on the error, and the verdict compares the interval with it on "
-             "both sides: `agrees` (the proven rate inside the interval, and the interval no wider than "
-             "± `verification.tolerance`, default 0.2 = half the smallest gap between two rates the paper "
-             "proves for one norm, 8/5 and 2); `exceeds` (the whole interval above: the bound is not sharp on "
-             "this case, a finding); `below` (the whole interval below: a finding, or a hypothesis fails); "
-             "`inconclusive` (too few levels, an interval holding the proven rate but too wide, or reference "
-             "depths k and k − 1 giving different classes: the reason says which); `not covered` (the paper "
-             "proves nothing here, or one of its hypotheses fails: the reason names it). The tolerance can "
-             "only move a verdict to or from `inconclusive`; the other classes come from the data. Where the "
-             "paper's bound carries |ln h| (d = 2, alpha > 2) the verdict uses the slope of error/|ln h|.", "",
+             "both sides. Every definite class needs the same evidence, three fitted levels and an interval no "
+             "wider than ± `verification.tolerance` (default 0.2 = half the smallest gap between two rates the "
+             "paper proves for one norm, 8/5 and 2): `agrees` (the proven rate inside the interval); `exceeds` "
+             "(the whole interval above: the bound is not sharp on this case, a finding); `below` (the whole "
+             "interval below: a finding, or a hypothesis fails); `inconclusive` (too few levels, an interval "
+             "too wide on either side, rates still moving towards a proven rate within the tolerance, or "
+             "reference depths k and k − 1 giving different classes: the reason says which); `not covered` "
+             "(the paper proves nothing here, or one of its hypotheses fails: the reason names it). Where the "
+             "paper's bound carries |ln h| (d = 2, alpha > 2) the rate is still the plain slope; the interval "
+             "also holds where the rates head if they approach the proven rate as p − b/|ln h|, and the slope "
+             "of error/|ln h| is shown beside it (log-corrected).", "",
              "Data-only scenes measure each level against the same problem on its own mesh refined k times "
              "(`verification.reference_refinements`, default 2): once the rates settle, that distance is a "
              "fixed fraction of the level's error on every level, so the fitted rate does not depend on k "
@@ -137,7 +138,7 @@ def case_section(case):
     for row in norm_rows(case):
         observed = rate(number(row["observed_rate"]))
         if row["log_factor"] is True:
-            observed += f" (of e/\\|ln h\\|; plain {rate(number(row['plain_rate']))})"
+            observed += f" (log-corrected {rate(number(row['log_corrected_rate']))})"
         proven = fraction(number(row["proven_rate"])) + (" · \\|ln h\\|" if row["log_factor"] is True else "")
         lines.append(f"| {row['name']} | {observed} | {interval(row)} | {proven} | {row['verdict']} | {row['levels']} | "
                      f"{row['paper'] or '-'} | {row['reason'].replace('|', '/')} |")

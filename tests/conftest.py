@@ -67,7 +67,7 @@ def partial_study(make_config):
     cfg = make_config(mesh={"refinements": [4, 8, 16]})
 
     def write_then_stop(levels):
-        results.write(cfg, levels)
+        results.write(studies.study_of(cfg, levels))
         if len(levels) == 2:
             raise Interrupt
 

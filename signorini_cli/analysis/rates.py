@@ -1,12 +1,15 @@
 """Convergence rates: observed between levels, fitted over the last levels, proven by the paper
 (Cantin & Hild 2020, one table of records), and the observed order, Richardson extrapolation and
-grid convergence index of a scalar quantity (Roache; Celik et al. 2008)."""
+grid convergence index of a scalar quantity (Roache; Celik et al. 2008). `slope` is the one log-log
+least-squares fit of the package and its scripts (rates in h, in eps, costs in dofs)."""
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..config import expressions
+
+FIT_LEVELS = 3  # the last levels a rate is fitted over without a config (verification.fit_levels' default)
 
 
 def observed(h, errors, valid):
@@ -33,7 +36,26 @@ def error_columns(rows):
     return [c for c in (rows[0] if rows else {}) if f"rate_{c}" in rows[0]]
 
 
-def fitted(h, errors, valid, k=3, log_factor=False):
+def slope(x, y, k=FIT_LEVELS):
+    """Least-squares slope of log y against log x over the last k points with x, y > 0 (None with fewer
+    than two distinct x): the rate of e ~ h^p, of a model error in eps, of a cost in dofs."""
+    points = [(a, b) for a, b in zip(x, y) if a is not None and b is not None and a > 0 and b > 0][-k:]
+    if len({a for a, _ in points}) < 2:
+        return None
+    return regression(np.log([a for a, _ in points]), np.log([b for _, b in points]))[0]
+
+
+def regression(log_x, log_y):
+    """(slope, intercept, standard error of the slope: None with two points) of the least-squares line."""
+    (p, c) = np.polyfit(log_x, log_y, 1)
+    if len(log_x) < 3:
+        return float(p), float(c), None
+    residual = log_y - (p * log_x + c)
+    sxx = float(np.sum((log_x - np.mean(log_x)) ** 2))
+    return float(p), float(c), math.sqrt(float(np.sum(residual**2)) / (len(log_x) - 2) / sxx)
+
+
+def fitted(h, errors, valid, k=FIT_LEVELS, log_factor=False):
     """Least-squares slope of log e against log h over the last k usable levels (None if fewer than 2).
     With log_factor the fit is of e/|ln h|: the slope that should reach p when e = O(h^p |ln h|)."""
     found = fit(h, errors, valid, k, log_factor)  # |ln h| vanishes at h = 1: such levels are left out
@@ -41,8 +63,10 @@ def fitted(h, errors, valid, k=3, log_factor=False):
 
 
 # rates r(h) = p + c h^q + ... change by rho = 2^-q per halving of h: q = 1 gives 1/2, the demo's L2 shows
-# 0.58-0.61; with one change known rho is taken as 2/3 (the rest of the way twice the last change)
-RHO_UNKNOWN, RHO_MAX = 2 / 3, 3 / 4
+# 0.58-0.61; with one change known q is taken as Q_UNKNOWN (rho = 2/3 per halving: the rest of the way twice
+# the last change), never below Q_MIN (rho = 3/4): rates that settle slower are called drifting by the
+# interval's width. In h, not in levels, so that any refinement ratios (N = 8, 12, 16; gmsh sizes) extrapolate.
+Q_UNKNOWN, Q_MIN, Q_MAX = math.log2(3 / 2), math.log2(4 / 3), 16.0
 # the narrowest interval: errors whose constant drifts by 3 % over three levels (h / 4) move their fitted slope
 # by ln(1.03)/ln(4) = 0.02, a change no pre-asymptotic study rules out (the demo's L2 constant e/h^2 drifts
 # by 2.8 % over N = 32..128)
@@ -54,12 +78,14 @@ class Fit:
     """A fitted slope with its uncertainty: `se` the regression's standard error (None with 2 levels),
     `rates` the successive rates between the fitted levels. The interval [lo, hi] holds slope ± 2 se
     (~95 % for normal residuals, at least ± MIN_HALF), every successive rate of the fit and `limit`, where
-    the rates head."""
+    the rates head (with `log_approach` also `log_limit`, where they head if they approach it as 1/|ln h|)."""
     slope: float
     se: float
     rates: tuple
     levels: tuple  # indices of the fitted levels
     history: tuple = ()  # the successive rates of every usable level up to the last fitted one
+    midpoints: tuple = ()  # the h each of them belongs to: sqrt(h_{k-1} h_k)
+    log_approach: bool = False
 
     @property
     def drift(self):
@@ -68,24 +94,37 @@ class Fit:
 
     @property
     def limit(self):
-        """Where the rates head: the last rate plus the rest of a geometric approach, rho/(1 - rho) times
-        its last change, rho the ratio of the last two changes over all usable levels (RHO_UNKNOWN with
-        fewer, at most RHO_MAX: rates that settle slower are called drifting by the interval's width)."""
+        """Where the rates head: r(h) = p + c h^q through the last two rates, q from the last three (Q_UNKNOWN
+        with fewer, or when their changes differ in sign; at least Q_MIN); p is the limit."""
         if len(self.history) < 2:
             return self.rates[-1]
-        step = self.history[-1] - self.history[-2]
-        rho = RHO_UNKNOWN
-        if len(self.history) > 2 and step * (self.history[-2] - self.history[-3]) > 0:
-            rho = min(step / (self.history[-2] - self.history[-3]), RHO_MAX)
-        return self.history[-1] + step * rho / (1 - rho)
+        (m2, m3), (r2, r3) = self.midpoints[-2:], self.history[-2:]
+        q = Q_UNKNOWN
+        if len(self.history) > 2 and (r3 - r2) * (r2 - self.history[-3]) > 0:
+            q = approach_order(self.midpoints[-3:], (r2 - self.history[-3]) / (r3 - r2))
+        return r3 + (r3 - r2) * m3**q / (m2**q - m3**q)
+
+    @property
+    def log_limit(self):
+        """Where the rates head if they approach p as p - b/|ln h| (a bound h^p |ln h| met sharply does: its
+        local slope is p - 1/|ln h|): linear in 1/|ln h| through the last two rates, at 1/|ln h| = 0."""
+        if len(self.history) < 2 or not self.log_approach or max(self.midpoints[-2:]) >= 1:
+            return self.limit
+        (u2, u3), (r2, r3) = (-1 / math.log(m) for m in self.midpoints[-2:]), self.history[-2:]
+        return r3 + (r3 - r2) * u3 / (u2 - u3)
+
+    @property
+    def heads(self):
+        """The limits the interval holds."""
+        return (self.limit, self.log_limit) if self.log_approach else (self.limit,)
 
     @property
     def lo(self):
-        return min(self.slope - max(2 * (self.se or 0.0), MIN_HALF), self.limit, *self.rates)
+        return min(self.slope - max(2 * (self.se or 0.0), MIN_HALF), *self.heads, *self.rates)
 
     @property
     def hi(self):
-        return max(self.slope + max(2 * (self.se or 0.0), MIN_HALF), self.limit, *self.rates)
+        return max(self.slope + max(2 * (self.se or 0.0), MIN_HALF), *self.heads, *self.rates)
 
     @property
     def half(self):
@@ -95,30 +134,49 @@ class Fit:
     @property
     def drifting(self):
         """Whether the moving rates, not the fit's residual, make the interval this wide."""
-        return max(self.limit, *self.rates) - min(self.limit, *self.rates) >= 4 * (self.se or 0.0)
+        return max(*self.heads, *self.rates) - min(*self.heads, *self.rates) >= 4 * (self.se or 0.0)
+
+    def moving(self, towards, settled):
+        """Whether the last two successive rates (the last one, if only one) each move towards `towards`
+        by more than `settled`: the rates are not done changing in that direction."""
+        steps = np.diff(self.history[-3:])
+        return len(steps) > 0 and all((towards - self.history[-1]) * s > 0 and abs(s) > settled for s in steps)
 
 
-def fit(h, errors, valid, k=3, log_factor=False):
+def approach_order(m, ratio):
+    """q with (m1^q - m2^q)/(m2^q - m3^q) = ratio (the ratio of two successive changes of r = p + c h^q at the
+    rates' h m1 > m2 > m3), by bisection in [Q_MIN, Q_MAX]; the ends where the ratio lies beyond them."""
+    def g(q):
+        return (m[0] ** q - m[1] ** q) / (m[1] ** q - m[2] ** q)
+
+    low, high = Q_MIN, Q_MAX
+    if ratio <= g(low):
+        return low
+    if ratio >= g(high):
+        return high
+    for _ in range(200):
+        middle = (low + high) / 2
+        low, high = (middle, high) if g(middle) < ratio else (low, middle)
+        if high - low < 1e-13:
+            break
+    return (low + high) / 2
+
+
+def fit(h, errors, valid, k=FIT_LEVELS, log_factor=False, log_approach=False):
     """The least-squares slope of `fitted` with its standard error and the successive rates of the
-    same levels (None if fewer than 2 usable levels)."""
-    last = usable(errors, valid)[-k:]
-    if log_factor:
-        last = [i for i in last if h[i] < 1]
+    same levels (None if fewer than 2 usable levels); log_approach: see Fit."""
+    every = [i for i in usable(errors, valid) if not log_factor or h[i] < 1]
+    last = every[-k:]
     if len(last) < 2 or len({h[i] for i in last}) < 2:
         return None
-    log_h = np.log([h[i] for i in last])
-    log_e = np.log([errors[i] for i in last]) - (np.log(-log_h) if log_factor else 0.0)
-    (slope, intercept), se = np.polyfit(log_h, log_e, 1), None
-    if len(last) > 2:
-        residual = log_e - (slope * log_h + intercept)
-        sxx = float(np.sum((log_h - log_h.mean()) ** 2))
-        se = math.sqrt(float(np.sum(residual**2)) / (len(last) - 2) / sxx)
-    steps = np.diff(log_e) / np.diff(log_h)
-    every = [i for i in usable(errors, valid) if i <= last[-1] and (not log_factor or h[i] < 1)]
-    log_h_all = np.log([h[i] for i in every])
-    log_e_all = np.log([errors[i] for i in every]) - (np.log(-log_h_all) if log_factor else 0.0)
-    history = np.diff(log_e_all) / np.diff(log_h_all)
-    return Fit(float(slope), se, tuple(float(r) for r in steps), tuple(last), tuple(float(r) for r in history))
+    every = [i for i in every if i <= last[-1]]
+    log_h = np.log([h[i] for i in every])
+    log_e = np.log([errors[i] for i in every]) - (np.log(-log_h) if log_factor else 0.0)
+    fitted_slope, _, se = regression(log_h[-len(last):], log_e[-len(last):])
+    history = np.diff(log_e) / np.diff(log_h)
+    midpoints = np.exp((log_h[1:] + log_h[:-1]) / 2)
+    return Fit(fitted_slope, se, tuple(float(r) for r in history[-(len(last) - 1):]), tuple(last),
+               tuple(float(r) for r in history), tuple(float(m) for m in midpoints), log_approach)
 
 
 # --- the paper's proven rates ----------------------------------------------------------------------

@@ -2,25 +2,16 @@
 scripts. `run` writes no files unless asked; a callback sees each level's solution before it is let go."""
 import copy
 import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 
 from mpi4py import MPI
 
 from .. import config, studies
-from ..config import loader, settings
-from ..record import results
+from ..config import loader, reading
 from . import guard
 
 
-@dataclass
-class Study:
-    """A finished study: its config, what the study type returned (Levels, a Sweep or a Total), its main
-    table as rows (dicts with the rates.csv columns) and, for refinement and signorini studies, its verdict."""
-    config: config.Config
-    result: object
-    rows: list
-    summary: object = None
+Study = studies.Study  # a finished study: config, result, tables (main table: `rows`) and verdict (`summary`)
 
 
 def load(source, **overrides):
@@ -34,26 +25,25 @@ def load(source, **overrides):
         if not isinstance(raw, dict):
             raise config.ConfigError("", "the config must be a YAML mapping of keys to values")
     for name, value in overrides.items():
-        settings.set_path(raw, name.replace("__", "."), value)
+        reading.set_path(raw, name.replace("__", "."), value)
     cfg = config.from_dict(raw, folder)
     return dataclasses.replace(cfg, text=config.yaml_dump(raw))
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
-    """Run cfg's study on `comm` and return it as a Study. on_level(level, u_h), if given, is called after
-    each solve of a refinement or signorini study (total_error: of its sub-studies) with the Level and its
-    solution u_h (a dolfinx Function; the mesh is u_h.function_space.mesh), before the study lets u_h go.
-    write=True writes rates.csv, summary.csv, study.h5 in cfg.output_dir as `signorini run` does."""
-    def each(result):
-        last = list(result)[-1]
-        if getattr(last, "solution", None) is not None:
+    """Run cfg's study on `comm` and return it as a Study (the runner of `signorini run`). on_level(level, u_h),
+    if given, is called after each solve of a refinement or signorini study (total_error: of its sub-studies)
+    with the Level and its solution u_h (a dolfinx Function; the mesh is u_h.function_space.mesh), before the
+    study lets u_h go. write=True keeps rates.csv, summary.csv, study.h5 and status.txt in cfg.output_dir
+    current after every solve, as `signorini run` does (its tables and figures are the command's)."""
+    def each(study):
+        if write:
+            watch.level_done(study)
+        last = list(study.result)[-1] if study.solves else None
+        if on_level is not None and getattr(last, "solution", None) is not None:
             on_level(last, last.solution)
 
-    result = studies.run_study(cfg, on_level=each if on_level else None, comm=comm)
-    kind = studies.of(cfg.study_type)
-    summary = kind.summary(cfg, result)
-    if write:
-        rows = results.write(cfg, result, comm, status=guard.status(cfg, result))
-    else:
-        rows = results.main_rows(kind.tables(cfg, result))
-    return Study(cfg, result, rows, summary)
+    if not write:
+        return studies.run(cfg, each if on_level else None, comm)
+    with guard.Watch(cfg, (), comm) as watch:
+        return studies.run(cfg, each, comm)

@@ -12,12 +12,11 @@ import yaml
 from mpi4py import MPI
 
 from .. import config, studies
-from ..analysis import verdict
 from ..config import ConfigError
 from ..meshing import geometries
 from ..problems import contact
 from ..record import results, resume
-from ..report import plots, progress, tables
+from ..report import plots, progress, tables, verdicts
 from ..solve import preflight, solver
 from ..system import errors
 from . import guard, maps, resources
@@ -264,37 +263,33 @@ def run(cfg, quiet=False, verbose=False, done=()):
         with guard.stdout_may_close():
             print(f"study {cfg.study}: resuming after level {done[-1].index}")
 
-    def on_level(result):
-        shown.level_done(watch.level_done(result))
-        solved = len(list(result))
-        if solved == len(done) + 1 and comm.rank == 0:  # the run's first solve: its options were read
+    def on_study(study):
+        shown.level_done(watch.level_done(study))
+        if study.solves == len(done) + 1 and comm.rank == 0:  # the run's first solve: its options were read
             _warn_unused_options(solver.unused_options([name for name, _ in cfg.solver.petsc_options]),
-                                 solved - 1)
+                                 study.solves - 1)
 
     with guard.Watch(cfg, done, comm) as watch:
-        result = studies.run_study(run_cfg, on_level=on_level, comm=comm,
-                                 monitor=None if verbose or quiet else shown.monitor, done=done)
-        summary = kind.summary(cfg, result)
-        text = watch.finish(lambda: _outputs(cfg, result, summary))
+        study = studies.run(cfg, on_study, comm, None if verbose or quiet else shown.monitor, done, run_cfg)
+        text = watch.finish(lambda: _outputs(study))
     if comm.rank == 0 and not quiet:
         with guard.stdout_may_close():  # `| head -1`: the files above are whole, the printing stops
             print(text)
-    if summary is not None and not summary.met:  # the user's `expect:` block: batch runs gate on it
+    if not study.met:  # the user's `expect:` block: batch runs gate on it
         return EXIT_EXPECTATION_NOT_MET
-    return EXIT_OK if all(solve.outcome.converged for solve in result) else EXIT_NOT_CONVERGED
+    return EXIT_OK if study.converged else EXIT_NOT_CONVERGED
 
 
-def _outputs(cfg, result, summary):
+def _outputs(study):
     """Write the study's tables and plots (rank 0) and return what the terminal shows."""
-    named = studies.of(cfg.study_type).tables(cfg, result)
-    study = results.Study(cfg.study, cfg.output_dir, results.main_rows(named), study_type=cfg.study_type,
-                          tables=named)
-    written = tables.write(study, cfg, cfg.output.digits, plots=cfg.output.plots, summary=summary)
+    cfg = study.config
+    record = results.Study(cfg.study, cfg.output_dir, study.rows, study_type=cfg.study_type, tables=study.tables)
+    written = tables.write(record, cfg, cfg.output.digits, plots=cfg.output.plots, summary=study.summary)
     header = (f"study {cfg.study} ({cfg.study_type}): {cfg.output_dir} "
               f"(contact term: contact_quadrature {cfg.contact_quadrature})")
-    shown = [verdict.format_summary(summary)] if summary is not None else []
+    shown = [verdicts.format_summary(study.summary)] if study.summary is not None else []
     files = [str(path.relative_to(cfg.output_dir)) for path in written]
-    return "\n".join([header, tables.terminal(study, cfg)] + shown + [tables.wrote(files)])
+    return "\n".join([header, tables.terminal(record, cfg)] + shown + [tables.wrote(files)])
 
 
 def _warn_unused_options(unused, level):

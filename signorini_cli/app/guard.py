@@ -16,7 +16,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..config import ConfigError
-from ..record import results
+from ..record import results, resume
 from .. import studies
 from ..system import errors, files
 
@@ -178,28 +178,37 @@ class Watch:
     reason, interrupted at level k."""
 
     def __init__(self, cfg, done, comm):
-        self.cfg, self.levels, self.comm = cfg, list(done), comm
+        self.cfg, self.comm = cfg, comm
+        self.study = studies.study_of(cfg, done)  # what is on disk
         self.done = self.recorded = len(done)
 
     def __enter__(self):
         try:
-            self.level_done(self.levels)  # a forced rerun replaces the old results at once
+            self.level_done(self.study)  # a forced rerun replaces the old results at once
         except BaseException as err:  # __exit__ is not called when __enter__ fails: record, then go on
             self.__exit__(type(err), err, err.__traceback__)
             raise
         return self
 
-    def level_done(self, levels):
-        """run_study's on_level: write the results whole (signals wait), then the testing hook; the rows.
-        self.levels are the levels on disk: a level whose writing failed is not among them."""
+    @property
+    def levels(self):
+        """The solves on disk: a level whose writing failed is not among them."""
+        return self.study.result
+
+    def level_done(self, study):
+        """The runner's on_study: write the study whole (signals wait), then the testing hook; its rows.
+        The new level's row gets the time its writing took (t_output), as the final record has it."""
         with deferred():
             start = time.perf_counter()
-            rows = results_write(self.cfg, levels, self.comm, final=False)
-            self.levels = list(levels) if isinstance(levels, list) else levels  # a Sweep, Total: as it grows
-            if isinstance(self.levels, list) and len(self.levels) > self.recorded:  # the new level's t_output
-                timings = self.levels[-1].timings
+            rows = results_write(study, self.comm, final=False)
+            with writing(self.cfg.output_dir):
+                resume.keep_solution(self.cfg, study.result, self.comm)
+            self.study = study
+            if isinstance(study.result, list) and len(study.result) > self.recorded:  # the new level's t_output
+                timings = study.result[-1].timings
                 timings["t_output"] = timings.get("t_output", 0.0) + time.perf_counter() - start
-                self.recorded = len(self.levels)
+                rows[-1]["t_output"] = timings["t_output"]
+                self.recorded = len(study.result)
         return rows
 
     @property
@@ -215,7 +224,7 @@ class Watch:
     def __exit__(self, kind, err, tb):
         if err is None:
             with deferred():  # the final status, and the last level's record with its own t_output
-                results_write(self.cfg, self.levels, self.comm)
+                results_write(self.study, self.comm)
             return False
         if not isinstance(err, (Exception, Interrupted)):
             return False
@@ -256,7 +265,7 @@ class Watch:
         """Write the results with `state` from this rank alone: the others may be gone or waiting. When
         they cannot be written (a full disk), status.txt alone, in place."""
         try:
-            results.write_files(self.cfg, self.levels, self.comm.size, state)
+            results.write_files(self.study, self.comm.size, state)
         except OSError as err:
             logger.debug("could not record the results in %s: %s", self.cfg.output_dir, err.strerror or err)
             try:
@@ -265,11 +274,11 @@ class Watch:
                 logger.warning("could not record the status %r: %s", state, again.strerror or again)
 
 
-def results_write(cfg, levels, comm, final=True):
-    """rates.csv, study.h5 and status.txt of the levels so far (collective); the table's rows.
+def results_write(study, comm, final=True):
+    """rates.csv, study.h5 and status.txt of a studies.Study (collective); the main table's rows.
     An OSError of the writer (rank 0) is a WriteFailed."""
-    with writing(cfg.output_dir):
-        return results.write(cfg, levels, comm, status=status(cfg, levels, final))
+    with writing(study.config.output_dir):
+        return results.write(study, comm, status=status(study.config, study.result, final))
 
 
 @contextmanager

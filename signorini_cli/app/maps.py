@@ -110,7 +110,7 @@ class Recorder:
         if not point.done:
             return
         with guard.deferred():
-            guard.results_write(point.cfg, point.levels, point.comm)
+            guard.results_write(studies.study_of(point.cfg, point.levels), point.comm)
             if point.failure and point.comm.rank == 0:
                 results.write_status(point.cfg.output_dir, f"failed at level {len(point.levels)}: {point.failure}")
         self.end(point)

@@ -7,7 +7,10 @@ from pathlib import Path
 
 from . import map as rate_map
 from . import petsc_options as petsc
-from .settings import MAX_BYTES, ConfigError, apply_override, set_path, validate, yaml_load
+from . import units
+from .reading import MAX_BYTES, apply_override, set_path, yaml_load
+from .schema import ConfigError
+from .settings import suggesting, validate
 
 
 def load(path, overrides=(), options=()):
@@ -66,6 +69,7 @@ def from_dict(raw, folder=None):
     """Validate a raw mapping into a Config, a map's points each validated as a study of its own;
     relative mesh paths are relative to `folder` (None: the working directory), and stored resolved."""
     cfg = validate(raw, folder)
-    if cfg.study_type == "map":
-        cfg = dataclasses.replace(cfg, map=rate_map.parse(raw, cfg, folder))
+    if units.STUDY_TYPES[cfg.study_type].POINTS:
+        with suggesting():
+            cfg = dataclasses.replace(cfg, map=rate_map.parse(raw, cfg, folder))
     return cfg

@@ -6,12 +6,14 @@ import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from . import settings
-from .settings import ConfigError
+from . import reading, rendering, settings
+from . import validators as check
+from .schema import ConfigError
 
+BLOCK = "map"  # the key of the map's own block
 KEYS = ("grid", "points", "jobs", "ranks_per_point")
 # what names, places or makes the map itself: a point takes these from the map
-FIXED = ("study", "study_type", "map", "output", "description")
+FIXED = ("study", "study_type", BLOCK, "output", "description")
 
 
 @dataclass(frozen=True)
@@ -37,10 +39,10 @@ class Map:
 def parse(raw, base, folder):
     """The `map` block of the config mapping `raw` (whose other keys validated as `base`), with every
     point's config: a key or value a single study refuses is a ConfigError naming key, value and point."""
-    block = raw.get("map")
+    block = raw.get(BLOCK)
     if block is None:
-        raise ConfigError("map", "missing: study_type map needs a map block (map.grid)")
-    settings._keys(block, "map", optional=KEYS)
+        raise ConfigError(BLOCK, "missing: study_type map needs a map block (map.grid)")
+    check.keys(block, BLOCK, optional=KEYS)
     grid = _grid(block.get("grid", {}), "map.grid")
     listed = _list(block.get("points", []), "map.points")
     points = tuple(_point(p, f"map.points[{i}]") for i, p in enumerate(listed))
@@ -50,14 +52,14 @@ def parse(raw, base, folder):
     wheres = ["map.grid.{key}"] * (len(values) - len(points)) + [f"map.points[{i}].{{key}}" for i in range(len(points))]
     studies = tuple(point_config(raw, k, point, base.output_dir / "points", folder, where)
                     for k, (point, where) in enumerate(zip(values, wheres)))
-    return Map(grid, points, settings._integer(block.get("jobs", 1), "map.jobs", low=1),
-               settings._integer(block.get("ranks_per_point", 1), "map.ranks_per_point", low=1), studies, values)
+    return Map(grid, points, check.integer(block.get("jobs", 1), "map.jobs", low=1),
+               check.integer(block.get("ranks_per_point", 1), "map.ranks_per_point", low=1), studies, values)
 
 
 def _grid(raw, path):
     if not isinstance(raw, dict):
         raise ConfigError(path, "must be a mapping of dotted config keys to lists of values, got "
-                                f"{settings._show(raw)}")
+                                f"{check.show(raw)}")
     grid = {}
     for key, values in _dotted(raw):
         _check_key(key, f"{path}.{key}")
@@ -78,7 +80,7 @@ def _dotted(raw, prefix=""):
 
 def _point(raw, path):
     if not isinstance(raw, dict) or not raw:
-        raise ConfigError(path, f"must be a mapping of dotted config keys to values, got {settings._show(raw)}")
+        raise ConfigError(path, f"must be a mapping of dotted config keys to values, got {check.show(raw)}")
     for key in raw:
         _check_key(key, f"{path}.{key}")
     return dict(raw)
@@ -86,7 +88,7 @@ def _point(raw, path):
 
 def _list(raw, path):
     if not isinstance(raw, list):
-        raise ConfigError(path, f"must be a list, got {settings._show(raw)}")
+        raise ConfigError(path, f"must be a list, got {check.show(raw)}")
     return list(raw)
 
 
@@ -99,16 +101,16 @@ def _check_key(key, path):
 
 def point_config(raw, k, point, folder, files, where):
     """Point k's Config: the map's config with the point's values, named k, written into folder/k/."""
-    study = {name: copy.deepcopy(value) for name, value in raw.items() if name not in ("map", "study_type")}
+    study = {name: copy.deepcopy(value) for name, value in raw.items() if name not in (BLOCK, "study_type")}
     try:
         for key, value in point.items():
-            settings.set_path(study, key, copy.deepcopy(value))
+            reading.set_path(study, key, copy.deepcopy(value))
         study.update(study=str(k), output=dict(study.get("output") or {}, dir=str(folder)))
         cfg = settings.validate(study, files)
     except ConfigError as err:
         key = next((key for key in point if err.path.startswith(key)), next(iter(point)))
         raise ConfigError(where.format(key=key), f"point {k} ({describe(point)}): {err}") from None
-    text = settings.yaml_dump(settings.to_dict(cfg))
+    text = reading.yaml_dump(rendering.to_dict(cfg))
     return dataclasses.replace(cfg, text=text)
 
 

@@ -9,7 +9,7 @@ from petsc4py import PETSc
 from scipy import special
 
 from ..config import ConfigError
-from . import measure
+from . import element, kinked, measure
 
 SERIES_SPREAD = 0.25  # series about the mean value c when every |u_j - c| <= c/4: terms shrink like 4^-j
 SERIES_TERMS = 32  # C(j+4, 4) 4^-j < 1e-14 from j = 32 on (at most 5 points in a divided difference)
@@ -144,11 +144,18 @@ def _cone(u, opposite, zeta, beta):
     return m0, m1, m2
 
 
-def positive_power(u_h, dofs, points, beta):
-    """∫_Γc [u_h]_+^beta over the rank's owned Γ_C facets (dofs, points as contact_facet_dofs), summed
-    over ranks: exact for the P1 u_h (the same closed forms as the solve's penalty term)."""
-    local = float(np.sum(measure.facet_sizes(points) * moments(u_h.x.array[dofs], beta)[0])) if len(dofs) else 0.0
-    return u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+def positive_power(comm, values, points, beta, degree=1):
+    """∫_Γc [w_h]_+^beta over the rank's owned Γ_C facets, summed over ranks, of the facet dof values
+    (facets, k) of a function of `degree` at the facets' dof points (facets, k, 3): P1 in closed form (the
+    solve's own rule), P2 on segments cut at the zeros of its quadratic (kinked.on_facets)."""
+    if not len(values):
+        local = 0.0
+    elif degree == 1:
+        local = float(np.sum(measure.facet_sizes(points) * moments(values, beta)[0]))
+    else:
+        trace = measure.on_facets(values)
+        local = float(np.sum(kinked.on_facets(points[:, :2], lambda *a: psi(trace[0](*a), beta), [trace])))
+    return comm.allreduce(local, op=MPI.SUM)
 
 
 # --- the kinked data term (1/eps)∫_Γc [u_ex]_+^alpha v: adaptive rules around the zeros of u_ex ------
@@ -331,6 +338,7 @@ class ContactTerm:
         self.sizes = measure.facet_sizes(self.points)
         self.alpha, self.eps, self.rule, self.penalty, self.u_exact = alpha, eps, rule, penalty, u_exact
         self.bs = u_h.function_space.dofmap.index_map_bs
+        self.degree = element.degree_of(u_h.function_space)
         self.normal = normal
         self.gap = np.zeros(self.dofs.shape) if gap is None else np.broadcast_to(gap(self.points), self.dofs.shape)
         self._data, self._data_eps = None, None
@@ -355,6 +363,8 @@ class ContactTerm:
         u_fn = snap_zeros(lambda x: self.u_exact(x, eps), self.points)
         if self.rule == "vertex":
             self._data = self.sizes[:, None] / self.dofs.shape[1] * psi(u_fn(self.points), self.alpha)
+        elif self.degree == 2:
+            self._data = p2_integrals(self.points, lambda facets, x: u_fn(x), self.alpha, 1)
         else:
             rule = data_on_segments if self.dofs.shape[1] == 2 else data_on_triangles
             self._data = canonical(rule, u_fn, self.alpha, self.points)
@@ -367,6 +377,8 @@ class ContactTerm:
             u_f = self.values(u)
             if self.rule == "vertex":
                 values += self.sizes[:, None] / u_f.shape[1] * psi(u_f, self.alpha)
+            elif self.degree == 2:
+                values += p2_integrals(self.points, u_f, self.alpha, 1)
             else:
                 values += self.sizes[:, None] * moments(u_f, self.alpha)[1]
         if self.u_exact is not None:
@@ -381,6 +393,8 @@ class ContactTerm:
         if self.rule == "vertex":
             diagonal = self.sizes[:, None] / k * self.alpha * psi(u_f, self.alpha - 1)
             values = diagonal[:, :, None] * np.eye(k)
+        elif self.degree == 2:
+            values = self.alpha * p2_integrals(self.points, u_f, self.alpha - 1, 2)
         else:
             values = self.sizes[:, None, None] * self.alpha * moments(u_f, self.alpha - 1)[2]
         return values / float(self.eps.value)
@@ -413,6 +427,20 @@ class ContactTerm:
         blocks = J[:, :, None, :, None] * nn[:, None, :, None, :]  # (facets, i, k, j, l)
         size = J.shape[1] * self.bs
         return blocks.reshape(len(J), size, size)
+
+
+def p2_integrals(points, w, beta, order):
+    """∫_F [w]_+^beta phi_i (order 1: (facets, 3)) or ∫_F [w]_+^beta phi_i phi_j (order 2: (facets, 3, 3)) on
+    the P2 segments F (dof points (facets, 3, 3): vertices, then the midpoint), w the P2 trace's dof values
+    (facets, 3) or an expression w(facets, x): each segment cut at the zeros of w (the quadratic's in closed
+    form), tanh-sinh on each piece (kinked.on_facets)."""
+    trace = measure.on_facets(w)
+
+    def integrand(facets, lam, x):
+        phi = measure.p2_basis(lam)
+        value = psi(trace[0](facets, lam, x), beta)[..., None] * phi
+        return value if order == 1 else value[..., None] * phi[..., None, :]
+    return kinked.on_facets(np.ascontiguousarray(points[:, :2]), integrand, [trace])
 
 
 def canonical(rule, u_fn, alpha, points):

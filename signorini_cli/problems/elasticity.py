@@ -62,14 +62,28 @@ def gap(cfg, x, functions):
 @dataclass(frozen=True)
 class Gap:
     """What the Γ_C measures read: w = u·n − g0 of u_h and u_ex (UFL), a(e, e) of an error e (UFL), and
-    the ContactTerm's vertex values of w_h (facets, n+1) with the facets' vertex points."""
+    the ContactTerm's vertex values of w_h (facets, n+1) with the facets' vertex points, and w_ex in numpy."""
     w_h: object
     w_exact: object
     energy: object
     term: contact.ContactTerm
+    cfg: object = None
 
     def vertex_values(self):
         return self.term.values(self.term.u_h.x.array)
+
+    def exact(self, eps_value):
+        """w_ex(facets, x) = u_ex(x)·n_F − g0(x) at points x (P, q, 3) of the rank's owned Γ_C facets F."""
+        normal = self.term.normal
+
+        def evaluate(facets, x):
+            coords = np.moveaxis(x, -1, 0)[:normal.shape[1]]
+            variables = dict(zip(("x", "y", "z"), coords), eps=eps_value)
+            functions = expressions.numpy_functions()
+            u = [np.broadcast_to(c(variables, functions), coords[0].shape) for c in self.cfg.problem.exact]
+            n = normal[facets]  # (P, d)
+            return sum(n[:, k, None] * u_k for k, u_k in enumerate(u)) - gap(self.cfg, coords, functions)
+        return evaluate
 
 
 def forms(cfg, domain, u_h, eps):
@@ -103,7 +117,7 @@ def forms(cfg, domain, u_h, eps):
     split = Split(F_fixed=-load, J_fixed=ufl.derivative(stiffness, u_h, du), F_varying=varying, J_varying=J_varying)
     energy = lambda e: ufl.inner(sigma(e, mu, lmbda), strain(e))  # noqa: E731
     return Forms(F, ufl.derivative(F, u_h, du), u_ex, ds_c, split, term, near_nullspace=rigid_motions(V),
-                 gap=Gap(w_h, w_ex, energy, term or contact_term(cfg, domain, u_h, eps, measuring=True)))
+                 gap=Gap(w_h, w_ex, energy, term or contact_term(cfg, domain, u_h, eps, measuring=True), cfg))
 
 
 def load_form(u_ex, v, n, mu, lmbda, dx, ds_c):

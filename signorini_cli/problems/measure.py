@@ -5,7 +5,7 @@ from mpi4py import MPI
 
 from dolfinx import fem
 
-from . import element
+from . import element, kinked
 
 
 
@@ -42,12 +42,6 @@ def error_degree(V, h):
     return element.error_degree(element.degree_of(V), h)
 
 
-def contact_error_degree(V):
-    """The quadrature degree of the Γ_C error integrals of a function in V: the coarse levels' error degree
-    on every level, since the positive parts kink inside facets."""
-    return element.error_degree(element.degree_of(V), float("inf"))
-
-
 def product_degree(V):
     """The quadrature degree exact for ∫ u v and ∫ ∇u·∇v of u, v in V."""
     return element.product_degree(element.degree_of(V))
@@ -73,20 +67,46 @@ def model_differences(u_eps, u_S, ds_c, gamma_c_dofs):
 
 # --- Γ_C: the contact-boundary terms of Lemma 3.1 and Corollary 3.2, and what a user quotes ---------
 
-def positive(u):
-    """[u]_+ in UFL."""
-    return ufl.conditional(ufl.gt(u, 0), u, 0)
+def contact_errors(comm, points, w_h, w, eps, alpha, h1):
+    """Γ_C errors of w_h against w on the rank's owned Γ_C facets (points (facets, k, 3)), given the H1
+    seminorm h1: L2_gc = ||w - w_h||_{L2(Γ_C)}, pos_gc = ||[w]_+ - [w_h]_+||_{L^{alpha+1}(Γ_C)}, its scaled
+    form pos_gc^{(alpha+1)/2} (Cor. 3.2 ii) and energy_err = (h1^2 + pos_gc^{alpha+1}/eps)^{1/2} (Lemma 3.1).
+    w_h and w are facet dof values (facets, k) of a discrete function or an expression w(facets, x); every
+    facet is cut at the zeros of w_h, w and w - w_h (kinked.on_facets: the integrands are smooth between)."""
+    u_h, u = on_facets(w_h), on_facets(w)
 
+    def integrand(facets, lam, x):
+        a, b = u[0](facets, lam, x), u_h[0](facets, lam, x)
+        return np.stack(((a - b) ** 2, np.abs(np.maximum(a, 0) - np.maximum(b, 0)) ** (alpha + 1)), axis=-1)
 
-def contact_errors(u_h, u, eps, alpha, ds_c, h1):
-    """Γ_C errors of u_h against u (exact expression or reference Function), given the H1 seminorm h1:
-    L2_gc = ||u - u_h||_{L2(Γ_C)}, pos_gc = ||[u]_+ - [u_h]_+||_{L^{alpha+1}(Γ_C)}, its scaled form
-    pos_gc^{(alpha+1)/2} (Cor. 3.2 ii) and energy_err = (h1^2 + pos_gc^{alpha+1}/eps)^{1/2} (Lemma 3.1)."""
-    l2_gc = np.sqrt(abs(integrate((u - u_h) ** 2, ds_c)))
-    pos_power = abs(integrate(abs(positive(u) - positive(u_h)) ** (alpha + 1), ds_c))
+    def difference(facets, lam, x):
+        return u[0](facets, lam, x) - u_h[0](facets, lam, x)
+    kinks = [u_h, u, (difference, u_h[1] and u[1])]
+    local = kinked.on_facets(points, integrand, kinks).sum(axis=0) if len(points) else np.zeros(2)
+    squared, pos_power = comm.allreduce(local, op=MPI.SUM)
     pos_gc = pos_power ** (1 / (alpha + 1))
-    return {"L2_gc": l2_gc, "pos_gc": pos_gc, "pos_gc_scaled": pos_gc ** ((alpha + 1) / 2),
+    return {"L2_gc": np.sqrt(squared), "pos_gc": pos_gc, "pos_gc_scaled": pos_gc ** ((alpha + 1) / 2),
             "energy_err": np.sqrt(h1**2 + pos_power / eps)}
+
+
+def on_facets(w):
+    """(w(facets, lam, x), polynomial) of facet dof values (a P1 trace, or P2 on segments: vertices, then the
+    midpoint) or of an expression w(facets, x)."""
+    if callable(w):
+        return (lambda facets, lam, x: np.broadcast_to(w(facets, x), x.shape[:-1])), False
+    values = np.asarray(w)
+
+    def trace(facets, lam, x):
+        if lam.shape[-1] == values.shape[1]:  # P1: the barycentric coordinates are the basis
+            return np.einsum("pqk,pk->pq", lam, values[facets])
+        return np.einsum("pqk,pk->pq", p2_basis(lam), values[facets])
+    return trace, True
+
+
+def p2_basis(lam):
+    """The P2 basis on a segment at barycentric coordinates lam (..., 2): its vertices', then its midpoint's."""
+    l0, l1 = lam[..., 0], lam[..., 1]
+    return np.stack((l0 * (2 * l0 - 1), l1 * (2 * l1 - 1), 4 * l0 * l1), axis=-1)
 
 
 def energy(u_h, f, g, eps, dx, ds_c, penalty):

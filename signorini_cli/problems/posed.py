@@ -7,9 +7,9 @@ import basix
 import ufl
 from dolfinx import fem
 
-from ..config import ConfigError
+from ..config import ConfigError, expressions
 from ..meshing.meshes import CONTACT, facet_vertices
-from . import compliance
+from . import compliance, elasticity
 
 # One-sided difference step for ∂_n u_S (domains are O(1)): its truncation error δ|u''|/2 and round-off
 # 1e-16|u|/δ both stay near 1e-7 relative, far below SIGN_TOL.
@@ -17,22 +17,46 @@ STEP = 1e-7
 SIGN_TOL = 1e-5  # relative to max(|u_S|, |∂_n u_S|) on Γ_C: a hundred times the difference's error
 
 
-def check(cfg, domain, u_exact, eps_value):
+def check(cfg, domain, u_exact, eps_value, cells=True):
     """Raise ConfigError (on every rank) when the level's data are not finite at the points the solve
-    and its errors evaluate them, or when a manufactured Signorini solution violates its conditions."""
+    and its errors evaluate them (the cells' quadrature points only with `cells`), or when a manufactured
+    Signorini solution violates its conditions."""
     msh = domain.mesh
     if cfg.problem.exact is not None:
         _finite(msh, "problem.exact", cfg.problem.exact.text, _exact_at_vertices(cfg, msh, eps_value))
-        f, _ = compliance.data(cfg, msh, eps_value, u_exact, ufl.FacetNormal(msh))
-        _finite(msh, "problem.exact", f"f = -Δ({cfg.problem.exact.text})", _at_cell_points(msh, f))
-        _finite(msh, "problem.exact", f"∇({cfg.problem.exact.text})", _at_cell_points(msh, ufl.grad(u_exact)))
-    else:
+        if cells:
+            f, _ = compliance.data(cfg, msh, eps_value, u_exact, ufl.FacetNormal(msh))
+            _finite(msh, "problem.exact", f"f = -Δ({cfg.problem.exact.text})", _at_cell_points(msh, f))
+            _finite(msh, "problem.exact", f"∇({cfg.problem.exact.text})", _at_cell_points(msh, ufl.grad(u_exact)))
+    elif cells:
         f, g = compliance.data(cfg, msh, eps_value, None, ufl.FacetNormal(msh))
         for key, value in (("f", f), ("g", g)):
             if getattr(cfg.problem, key) is not None:
                 _finite(msh, f"problem.{key}", getattr(cfg.problem, key).text, _at_cell_points(msh, value))
     if cfg.problem.exact_solves == "signorini":
         signorini_conditions(cfg, domain)
+
+
+def check_elastic(cfg, domain, u_exact, eps_value, cells=True):
+    """Raise ConfigError (on every rank) when an elastic problem's data are not finite where the solve and
+    its errors evaluate them: u_ex's components and the gap g0 at the vertices, f = −div σ(u_ex) and ∇u_ex
+    at the cells' quadrature points (with `cells`)."""
+    msh = domain.mesh
+    points = msh.geometry.x
+    variables = dict(zip(("x", "y", "z"), points.T[:msh.geometry.dim]), eps=eps_value)
+    functions = expressions.numpy_functions()
+    data = [("problem.exact", c) for c in cfg.problem.exact or ()] + [("problem.gap", cfg.problem.gap)]
+    for path, component in data:
+        if component is not None:
+            with np.errstate(all="ignore"):  # a nan is reported below, with its point
+                values = np.asarray(component(variables, functions), dtype=float)
+            _finite(msh, path, component.text, (points, np.broadcast_to(values, points.shape[:1])))
+    if u_exact is not None and cells:
+        mu, lmbda = elasticity.lame(cfg.material)
+        f = -ufl.div(elasticity.sigma(u_exact, mu, lmbda))
+        texts = ", ".join(c.text for c in cfg.problem.exact)
+        _finite(msh, "problem.exact", f"f = -div σ(({texts}))", _at_cell_points(msh, f))
+        _finite(msh, "problem.exact", f"∇(({texts}))", _at_cell_points(msh, ufl.grad(u_exact)))
 
 
 def _exact_at_vertices(cfg, msh, eps_value):
@@ -43,20 +67,31 @@ def _exact_at_vertices(cfg, msh, eps_value):
     return points, np.broadcast_to(np.asarray(values, dtype=float), points.shape[:1])
 
 
+CHUNK = 1 << 14  # cells evaluated at once: the points and values of a chunk stay below ~10 MB in 3-D
+
+
 def _at_cell_points(msh, value):
-    """(points, values) of a UFL expression at the quadrature points of the data terms in every cell."""
+    """(points, values) of a UFL expression at the quadrature points of the data terms in the rank's cells:
+    the first non-finite value found, or the last chunk's points when all are finite (evaluated chunk by
+    chunk, so the check adds no more than a chunk to the peak memory)."""
     value = compliance.on_mesh(value, msh)
     cell = msh.topology.cell_name()
     X, _ = basix.make_quadrature(basix.cell.string_to_type(cell), compliance.QUADRATURE_DEGREE)
-    cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
     size = int(np.prod(ufl.shape(value), dtype=int))  # explicit: a rank may own no cell (tiny meshes)
-    x = fem.Expression(ufl.SpatialCoordinate(msh), X).eval(cells).reshape(len(cells), len(X), msh.geometry.dim)
-    values = fem.Expression(value, X).eval(cells).reshape(len(cells), len(X), size)
-    worst = np.argmax(~np.isfinite(values), axis=2)  # the first non-finite component of each point
-    pointwise = np.take_along_axis(values, worst[..., None], axis=2)[..., 0]
-    points = np.zeros((len(cells) * len(X), 3))
-    points[:, :x.shape[2]] = x.reshape(-1, x.shape[2])
-    return points, pointwise.ravel()
+    where, what = fem.Expression(ufl.SpatialCoordinate(msh), X), fem.Expression(value, X)
+    owned = msh.topology.index_map(msh.topology.dim).size_local
+    points, pointwise = np.zeros((0, 3)), np.zeros(0)
+    for start in range(0, owned, CHUNK):
+        cells = np.arange(start, min(start + CHUNK, owned), dtype=np.int32)
+        x = where.eval(cells).reshape(len(cells) * len(X), msh.geometry.dim)
+        values = what.eval(cells).reshape(len(cells) * len(X), size)
+        worst = np.argmax(~np.isfinite(values), axis=1)  # the first non-finite component of each point
+        pointwise = np.take_along_axis(values, worst[:, None], axis=1)[:, 0]
+        points = np.zeros((len(x), 3))
+        points[:, :x.shape[1]] = x
+        if not np.isfinite(pointwise).all():
+            break
+    return points, pointwise
 
 
 def _finite(msh, path, text, found):

@@ -1,7 +1,7 @@
 """The problems by PDE: a study reaches its function space, forms, boundary condition and errors only
 through the module problem_of(cfg) returns, so a new PDE is one new module here."""
 import contextlib
-import weakref
+import dataclasses
 
 from . import compliance, elasticity, posed, vi
 
@@ -16,19 +16,23 @@ def problem_of(cfg, limit=False):
     return (LIMITS if limit else PROBLEMS)[cfg.problem.pde]
 
 
-# the checks a problem's data pass before its first solve (problems/posed.py: the scalar problem's)
-POSED = {"poisson": posed.check}
+# the checks a problem's data pass before its first solve (problems/posed.py)
+POSED = {"poisson": posed.check, "elasticity": posed.check_elastic}
 
 
-_passed = None  # within checked_once(): {(id(mesh), data): weak reference to the mesh they passed on}
+_passed = None  # within checked_once(): the (mesh family, data) whose data passed on the family's cells
 
 
 @contextlib.contextmanager
 def checked_once():
-    """Within: a problem's data are checked once on each level's mesh (a map's points share their meshes
-    and, but for ε and α, their data)."""
+    """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points
+    once per mesh family (what a data check at interior points can find there, it finds on any level),
+    at the vertices and on Γ_C on every level (where a finer level's new vertices may meet a singularity)."""
     global _passed
-    _passed = {}
+    if _passed is not None:
+        yield
+        return
+    _passed = set()
     try:
         yield
     finally:
@@ -36,22 +40,29 @@ def checked_once():
 
 
 def check_posed(cfg, domain, u_exact, eps_value):
-    """ConfigError (on every rank) when the level's problem is not posed right, where its PDE has a check."""
-    if cfg.problem.pde not in POSED:
-        return
-    key = (id(domain.mesh), _data(cfg.problem, eps_value))
-    if _passed is not None and key in _passed and _passed[key]() is domain.mesh:
-        return
-    POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value)
+    """ConfigError (on every rank) when the level's problem is not posed right: every path that solves calls
+    it before its first solve on a mesh (refinement levels, map points, the VI, ε-sweeps, total error)."""
+    key = (_family(cfg), _data(cfg.problem, eps_value))
+    cells = _passed is None or key not in _passed
+    POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, cells=cells)
     if _passed is not None:
-        for gone in [k for k, mesh in _passed.items() if mesh() is None]:
-            del _passed[gone]
-        _passed[key] = weakref.ref(domain.mesh)
+        _passed.add(key)
+
+
+def _family(cfg):
+    """The mesh family a level belongs to: its mesh settings but the list of levels, and Γ_C."""
+    return repr((dataclasses.replace(cfg.mesh, **{cfg.mesh.level_key: ()}), cfg.contact))
 
 
 def _data(problem, eps_value):
     """What the check of a problem's data depends on: their texts, and ε where they use it."""
-    texts = [e.text if e is not None else None for e in (problem.exact, problem.f, problem.g)]
-    uses_eps = any(e is not None and "eps" in e.names for e in (problem.exact, problem.f, problem.g))
+    given = _expressions(problem.exact) + [problem.f, problem.g, problem.gap]
+    texts = [e.text if e is not None else None for e in given]
+    uses_eps = any(e is not None and "eps" in e.names for e in given)
     defined = tuple((name, e.text) for name, e in problem.define)
     return repr((texts, defined, problem.exact_solves, eps_value if uses_eps else None))
+
+
+def _expressions(exact):
+    """The exact solution's expressions: one (scalar) or one per component (elasticity)."""
+    return list(exact) if isinstance(exact, tuple) else [exact]

@@ -35,32 +35,23 @@ def is_timing(column):
             or column.startswith("t_"))
 
 
-def write(cfg, result, comm=MPI.COMM_WORLD, status=None):
-    """Write the study's files (and status.txt, given a status) for the result so far (rank 0 writes,
-    every rank waits); the rows of its main table."""
-    kind = studies.of(cfg.study_type)
-    summary = kind.summary(cfg, result)  # on every rank: built from reduced values
-    named = kind.tables(cfg, result)
+def write(study, comm=MPI.COMM_WORLD, status=None):
+    """Write the files of a studies.Study (and status.txt, given a status) (rank 0 writes, every rank
+    waits); the rows of its main table."""
     if comm.rank == 0:
-        write_files(cfg, result, comm.size, status, summary, named)
+        write_files(study, comm.size, status)
     comm.barrier()
-    return main_rows(named)
+    return study.rows
 
 
-def main_rows(named):
-    """The rows of the first (main) of a study type's tables, [] before any."""
-    return next(iter(named.values()), [])
-
-
-def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
+def write_files(study, mpi_size, status=None):
     """The writing of `write` by this rank alone, no collective: the fault path calls it on the rank
     that failed. Every file is written aside first, then all are renamed (status.txt last): a failure
     such as a full disk replaces none of them, so the tables and study.h5 always hold the same solves."""
+    cfg, named, summary = study.config, study.tables, study.summary
     kind = studies.of(cfg.study_type)
-    for sub, part in kind.parts(cfg, result):
-        write_files(sub, part, mpi_size)
-    named = kind.tables(cfg, result) if named is None else named
-    summary = kind.summary(cfg, result) if summary is None else summary
+    for sub, part in kind.parts(cfg, study.result):
+        write_files(studies.study_of(sub, part), mpi_size)
     folder = cfg.output_dir
     folder.mkdir(parents=True, exist_ok=True)
     texts = {name: csvfile.text(rows) for name, rows in named.items() if "/" not in name}
@@ -69,9 +60,9 @@ def write_files(cfg, result, mpi_size, status=None, summary=None, named=None):
         texts["summary"] = csvfile.text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
     texts = {name: (text or csvfile.text([], EMPTY_HEADERS.get(name))) for name, text in texts.items()}
     writes = [(folder / f"{name}.csv", functools.partial(Path.write_text, data=text)) for name, text in texts.items()]
-    levels = kind.levels_of(result)
+    levels = kind.levels_of(study.result)
     attrs = record_attrs(cfg, levels, mpi_size, status)
-    writes.append((folder / h5.NAME, lambda path: h5.write(path, attrs, named, zip(levels, main_rows(named)),
+    writes.append((folder / h5.NAME, lambda path: h5.write(path, attrs, named, zip(levels, study.rows),
                                                             summary_rows)))
     if status is not None:
         writes.append((folder / STATUS_FILE, functools.partial(Path.write_text, data=status + "\n")))

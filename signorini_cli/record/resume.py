@@ -1,12 +1,17 @@
 """Resuming a study: its finished levels read back from study.h5 by their index, when the config is
 unchanged (or only appends levels to the mesh's list) and every level up to the last is there whole."""
+import io
 import json
 import math
+from dataclasses import dataclass
+
+import numpy as np
 
 from .. import config, studies
 from ..config import ConfigError
 from ..solve import solver
 from ..studies.level import EXTRA_COLUMNS, NORMS, LEADING_COLUMNS, Level
+from ..system import files
 from . import h5, results
 
 # row columns that Level's own fields and Outcome produce (level.rate_table); any other is Level.extra
@@ -14,10 +19,70 @@ OWN_COLUMNS = (set(LEADING_COLUMNS) | set(EXTRA_COLUMNS) | {"cumulative_time_s"}
 FORCE = "use --force to start over"
 
 
+SOLUTION = "solution.h5"  # the last converged level's u_h, beside study.h5: where an extended study goes on from
+
+
+@dataclass(frozen=True)
+class Stored:
+    """A level's u_h as its dof points (nodes, 3) and values (nodes, bs), in no rank's order: a resumed
+    study matches them to its own dofs by their points (studies.refinement)."""
+    index: int
+    points: np.ndarray
+    values: np.ndarray
+
+
 def finished_levels(cfg, comm):
-    """The levels of `cfg` already in its study.h5, read on rank 0 and broadcast; [] when there is no
+    """The levels of `cfg` already in its study.h5, read on rank 0 and broadcast, the last converged one
+    with its stored u_h (Level.solution, a Stored) when solution.h5 holds it; [] when there is no
     study.h5. ConfigError on every rank when they cannot be continued (another config, unreadable)."""
-    return on_rank_zero(comm, lambda: read_levels(cfg))
+    levels = on_rank_zero(comm, lambda: read_levels(cfg))
+    converged = [lv for lv in levels if lv.outcome.converged]
+    if converged:
+        converged[-1].solution = comm.bcast(read_solution(cfg, converged[-1].index) if comm.rank == 0 else None)
+    return levels
+
+
+def keep_solution(cfg, levels, comm):
+    """Write the newest level's u_h to solution.h5 (rank 0, atomically) when it converged: what a resumed
+    or extended study needs to go on without solving its finished levels again. Collective."""
+    if not isinstance(levels, list) or not levels or not studies.of(cfg.study_type).RESUMABLE:
+        return
+    level = levels[-1]
+    if level.solution is None or isinstance(level.solution, Stored) or not level.outcome.converged:
+        return
+    V = level.solution.function_space
+    owned, bs = V.dofmap.index_map.size_local, V.dofmap.index_map_bs
+    parts = comm.gather((V.tabulate_dof_coordinates()[:owned], level.solution.x.array.reshape(-1, bs)[:owned]))
+    if comm.rank == 0:
+        points, values = (np.concatenate([part[k] for part in parts]) for k in (0, 1))
+        files.replace(cfg.output_dir / SOLUTION, lambda path: path.write_bytes(_solution_bytes(level.index, points,
+                                                                                               values)))
+
+
+def _solution_bytes(index, points, values):
+    import h5py
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as out:
+        out.attrs["level"] = index
+        out.attrs["description"] = "the level's u_h: its dofs' points and values, for --resume"
+        out.create_dataset("points", data=points)
+        out.create_dataset("values", data=values)
+    return buffer.getvalue()
+
+
+def read_solution(cfg, index):
+    """The Stored u_h of level `index` in solution.h5, or None (no file, another level, unreadable)."""
+    path = cfg.output_dir / SOLUTION
+    if not path.exists():
+        return None
+    import h5py
+    try:
+        with h5py.File(path, "r") as stored:
+            if int(stored.attrs["level"]) != index:
+                return None
+            return Stored(index, stored["points"][...], stored["values"][...])
+    except (OSError, KeyError, ValueError):
+        return None  # then the finished levels are solved again
 
 
 def on_rank_zero(comm, find):

@@ -281,9 +281,9 @@ def rate_lines(rows, norm, key, others):
         label = ", ".join(f"{k}={v}" for k, v in fixed.items()) or norm
         ax.plot(where, [_number(chosen[x].get(f"rate_{norm}")) or math.nan for x in at], marker=marker,
                 color=colour, label=label)
-        plain = [_number(chosen[x].get(f"rate_{norm}_plain")) or math.nan for x in at]
-        if any(abs(p - (_number(chosen[x].get(f"rate_{norm}")) or math.nan)) > 1e-12 for p, x in zip(plain, at)):
-            ax.plot(where, plain, "--", marker=marker, mfc="none", color=colour)  # the fit of e, not e/|ln h|
+        logs = [_number(chosen[x].get(f"rate_{norm}_log")) or math.nan for x in at]
+        if not all(math.isnan(p) for p in logs):
+            ax.plot(where, logs, "--", marker=marker, mfc="none", color=colour)  # the fit of e/|ln h|
         ax.plot(where, [_number(chosen[x].get(f"proven_{norm}")) or math.nan for x in at], ":", marker="_",
                 ms=8, color=colour)
     if logarithmic:
@@ -291,9 +291,9 @@ def rate_lines(rows, norm, key, others):
     if not numeric:
         ax.set_xticks(range(len(xs)), xs)
     ax.set_xlabel(key)
-    logs = any(_number(r.get(f"rate_{norm}_plain")) != _number(r.get(f"rate_{norm}")) for r in rows)
-    ax.set_ylabel(f"fitted rate, {norm}" + (" (dashed: plain fit)" if logs else ""))
-    ax.set_title("dotted: the proven rate" + ("; solid: fit of e/|ln h|" if logs else ""), fontsize=plots.FONT_PT)
+    logs = any(_number(r.get(f"rate_{norm}_log")) is not None for r in rows)
+    ax.set_ylabel(f"fitted rate, {norm}" + (" (dashed: fit of e/|ln h|)" if logs else ""))
+    ax.set_title("dotted: the proven rate" + ("; solid: plain slope" if logs else ""), fontsize=plots.FONT_PT)
     if len(combos) > 1 or others:
         ax.legend(loc="best", fontsize=plots.FONT_PT - 1)
     return fig

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.rates import fitted
+from ..analysis import rates
 from ..analysis.rates import error_columns as norms
 from ..config import names
 
@@ -41,7 +41,7 @@ class Layout:
     per_norm: bool = False
 
 
-def write_all(rows, folder, proven=None, title="", fit_levels=3, width=None, per_norm=False, shown=None,
+def write_all(rows, folder, proven=None, title="", fit_levels=rates.FIT_LEVELS, width=None, per_norm=False, shown=None,
               suffix=""):
     """convergence, work_precision and newton (and convergence_<norm> with per_norm), each as PNG and PDF
     in `folder`, `suffix` added to their names; the paths written. `shown`: the plotted norms (default:
@@ -89,7 +89,7 @@ def save(fig, folder, name):
 
 # --- one study ----------------------------------------------------------------------------------
 
-def convergence(rows, proven=None, title="", fit_levels=3, width=WIDTH_PT, shown=None):
+def convergence(rows, proven=None, title="", fit_levels=rates.FIT_LEVELS, width=WIDTH_PT, shown=None):
     """The norms `shown` (default all) against h, log-log, SHARED_PANEL per panel or more where the
     figure would be too tall (norm_groups). A proven rate gets a dashed, open triangle marked "proven";
     a norm without one a filled triangle of its fitted slope; the fitted slope is in the legend either
@@ -106,7 +106,7 @@ def convergence(rows, proven=None, title="", fit_levels=3, width=WIDTH_PT, shown
         by_finest = sorted(group, key=lambda norm: curves[norm][1][-1])
         for norm in group:
             h, e = curves[norm]
-            slope = fitted(list(h), list(e), [True] * len(e), fit_levels)
+            slope = rates.slope(h, e, fit_levels)
             fit = f"fit {slope:.2f}" if slope is not None else "one level"
             marked = norm in (by_finest[0], by_finest[-1])
             if norm in proven and not marked:

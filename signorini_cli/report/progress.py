@@ -3,8 +3,7 @@ the time left once the levels' costs allow an honest estimate."""
 import sys
 import time
 
-import numpy as np
-
+from ..analysis import rates
 from ..config import MESH_KINDS
 from .tables import TERMINAL_WIDTH, norms
 
@@ -124,11 +123,9 @@ def scaling_levels(rows):
 
 def cost_exponent(dofs, seconds, k=ETA_LEVELS):
     """Least-squares p in time ~ dofs^p over the last k levels, within [MIN_EXPONENT, MAX_EXPONENT]."""
-    dofs, seconds = np.asarray(dofs[-k:], dtype=float), np.asarray(seconds[-k:], dtype=float)
-    if len(dofs) < 2 or np.ptp(np.log(dofs)) == 0 or np.any(seconds <= 0):
-        return MIN_EXPONENT
-    p = float(np.polyfit(np.log(dofs), np.log(seconds), 1)[0])
-    return min(MAX_EXPONENT, max(MIN_EXPONENT, p))
+    dofs, seconds = list(dofs[-k:]), list(seconds[-k:])
+    p = rates.slope(dofs, seconds, k) if all(t > 0 for t in seconds) else None
+    return MIN_EXPONENT if p is None else min(MAX_EXPONENT, max(MIN_EXPONENT, p))
 
 
 def format_duration(seconds):

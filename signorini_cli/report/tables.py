@@ -6,11 +6,11 @@ from pathlib import Path
 
 from .. import config, studies
 from ..analysis import verdict
-from ..analysis.rates import fitted
+from ..analysis import rates
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
 from ..record import csvfile
-from . import latex
+from . import latex, verdicts
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
 TERMINAL_WIDTH = 120  # columns of a terminal table; wider ones wrap into blocks
@@ -19,13 +19,7 @@ ALWAYS = ("L2", "H1", "L2_ref", "H1_ref")  # in the paper columns whether the pa
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
 FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})
-FIT_LEVELS = 3  # fitted slopes without a config: verification.fit_levels' default
 RATE_DEFINITION = r"rate: $\log(e_k/e_{k-1})/\log(h_k/h_{k-1})$ between successive levels"
-
-
-def fitted_slope(h, e, k=FIT_LEVELS):
-    """Least-squares slope of log e against log h over the last k points (None with fewer than 2)."""
-    return fitted(list(h), list(e), [True] * len(e), k)
 
 
 # --- which columns a table shows --------------------------------------------------------------
@@ -145,7 +139,7 @@ def _format(column, value):
     return str(value)
 
 
-def comparison(studies, fit_levels=FIT_LEVELS):
+def comparison(studies, fit_levels=rates.FIT_LEVELS):
     """One row per study ({label: rows}): levels, finest converged h, total wall time, per norm the
     finest error (<norm>_finest) and the slope fitted over the last `fit_levels` levels (<norm>_fit)."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
@@ -157,12 +151,12 @@ def comparison(studies, fit_levels=FIT_LEVELS):
         for norm in all_norms:
             points = [(row["h"], row[norm]) for row in ok if row.get(norm)]
             row[f"{norm}_finest"] = points[-1][1] if points else None
-            row[f"{norm}_fit"] = fitted_slope(*zip(*points), k=fit_levels) if len(points) > 1 else None
+            row[f"{norm}_fit"] = rates.slope(*zip(*points), k=fit_levels) if points else None
         table.append(row)
     return table, all_norms
 
 
-def summary_table(studies, fit_levels=FIT_LEVELS):
+def summary_table(studies, fit_levels=rates.FIT_LEVELS):
     """The comparison for the terminal: one line per study, each norm's finest error and fitted slope
     under its name (wrapped into blocks at TERMINAL_WIDTH)."""
     table, all_norms = comparison(studies, fit_levels)
@@ -175,7 +169,7 @@ def summary_table(studies, fit_levels=FIT_LEVELS):
     return "\n".join(_aligned(groups))
 
 
-def write_comparison(studies, folder, fit_levels=FIT_LEVELS):
+def write_comparison(studies, folder, fit_levels=rates.FIT_LEVELS):
     """compare.csv, compare.md and compare.tex (fitting a page) of `studies` in `folder`; the paths."""
     table, all_norms = comparison(studies, fit_levels)
     folder = Path(folder)
@@ -408,17 +402,17 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
         path.parent.mkdir(parents=True, exist_ok=True)
         how = (chosen, proven) if table.paper else ("all", {})
         part = "" if table.paper and "/" not in table.name else f", table {table.name}"
-        verdicts = ([], []) if summary is None or table is not shown[0] else (
-            verdict.markdown_lines(summary), verdict.latex_lines(summary))
+        under = ([], []) if summary is None or table is not shown[0] else (
+            verdicts.markdown_lines(summary), verdicts.latex_lines(summary))
         comment = (description + part).replace("--", "- -")  # "-->" in a description would end the comment
         written.append(path.with_name(path.name + ".md"))
         written[-1].write_text("\n".join([f"<!-- {comment} -->\n" + markdown_table(table.rows, digits, *how)
-                                          .rstrip("\n")] + verdicts[0]) + "\n")
+                                          .rstrip("\n")] + under[0]) + "\n")
         caption = caption_of(study.name, cfg, _variational(table.rows)) + latex.escape(part)
         key = latex.label(study.name, table.name if part else "", suffix)
         written.append(path.with_name(path.name + ".tex"))
         written[-1].write_text("\n".join([latex_table(table.rows, digits, caption, *how, key=key).rstrip("\n")]
-                                         + verdicts[1]) + "\n")
+                                         + under[1]) + "\n")
     if plots:
         shown_norms = choose(study.rows, chosen, proven)[1] if chosen != "paper" and study.rows else None
         written += draw(figures, study, cfg, folder, proven, figure, shown_norms, suffix)
@@ -433,7 +427,7 @@ def _variational(rows):
 def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""):
     """The study type's figures, each by its kind (convergence figures of the norms `shown`, all if None,
     their names ending in `suffix`); the paths written."""
-    fit_levels = cfg.verification.fit_levels if cfg is not None else FIT_LEVELS
+    fit_levels = cfg.verification.fit_levels if cfg is not None else rates.FIT_LEVELS
     figure = dict({"width": cfg.output.figure_width or None} if cfg is not None else {}, **(figure or {}))
     written = []
     for fig in figures:

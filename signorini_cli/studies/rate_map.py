@@ -17,7 +17,7 @@ from . import refinement
 logger = logging.getLogger(__name__)
 
 NORMS = ("L2", "H1")  # first, in this order; any other measured norm follows
-NORM_COLUMNS = ("rate_{}", "rate_{}_lo", "rate_{}_hi", "rate_{}_plain", "proven_{}", "verdict_{}", "{}")
+NORM_COLUMNS = ("rate_{}", "rate_{}_lo", "rate_{}_hi", "rate_{}_log", "proven_{}", "verdict_{}", "{}")
 TAIL_COLUMNS = ("converged", "newton_its", "time_s", "status")
 
 NAME = "map"
@@ -140,13 +140,14 @@ def norms_of(rows):
 
 def row(cfg, values, levels, status, varied):
     """A point's row of map.csv: its values, per norm the fitted rate over the last levels with its
-    interval, the plain fit (differs when the proven rate carries |ln h|), the proven rate, the verdict
+    interval, the log-corrected fit (the slope of e/|ln h|, where the proven rate carries |ln h|), the proven rate,
+    the verdict
     and the finest converged error; whether every level converged, Newton iterations, wall time."""
     out = {key: values.get(key) for key in varied}
     for v in verdict.summarize(cfg, levels).norms if levels else ():
         finest = [lv.errors.get(v.norm) for lv in levels if lv.outcome.converged]
         out.update({f"rate_{v.norm}": v.observed, f"rate_{v.norm}_lo": v.lo, f"rate_{v.norm}_hi": v.hi,
-                    f"rate_{v.norm}_plain": getattr(v, "plain", v.observed), f"proven_{v.norm}": v.proven,
+                    f"rate_{v.norm}_log": v.log_corrected, f"proven_{v.norm}": v.proven,
                     f"verdict_{v.norm}": v.verdict, v.norm: finest[-1] if finest else None})
     out.update(converged=status == "complete" and all(lv.outcome.converged for lv in levels),
                newton_its=sum(lv.outcome.newton_its for lv in levels),

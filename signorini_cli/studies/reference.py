@@ -11,6 +11,7 @@ from dolfinx import fem
 
 from ..config import MESH_KINDS
 from ..meshing import meshes, refinement
+from ..meshing.meshes import CONTACT
 from ..problems import measure
 from ..problems.registry import problem_of
 from ..solve import strategies
@@ -69,8 +70,10 @@ class Reference:
         moved = transfer(u_h, u_ref.function_space)
         found = measure.difference_norms(moved, u_ref)
         if with_contact:
-            ds_c = domain.ds_c(measure.contact_error_degree(u_ref.function_space))
-            found.update(measure.contact_errors(moved, u_ref, eps_value, self.cfg.alpha, ds_c, found["H1"]))
+            dofs, points = measure.contact_facet_dofs(u_ref.function_space, domain.facet_tags, CONTACT)
+            found.update(measure.contact_errors(domain.mesh.comm, points[:, :domain.mesh.topology.dim],
+                                                moved.x.array[dofs], u_ref.x.array[dofs], eps_value,
+                                                self.cfg.alpha, found["H1"]))
         return {f"{name}_ref": value for name, value in found.items()}
 
 

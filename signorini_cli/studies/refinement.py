@@ -2,6 +2,7 @@
 and convergence figures."""
 import time
 
+import numpy as np
 from mpi4py import MPI
 from dolfinx import fem
 
@@ -43,15 +44,22 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
 
 
 def resume_verifier(cfg, done, comm, verifier):
-    """A resumed study solves its finished levels again, unrecorded, for what the next level needs: the
-    last converged u_h, as the successive differences (measure `diff`) and nested iteration start from it.
-    Nested strategies solve the whole chain again (levels 0 .. last converged, each from the one before),
-    so the resumed levels start from the very same guess and give the same numbers as an uninterrupted
-    run; otherwise the last converged level alone. Returns that u_h (or None)."""
+    """What the next level of a resumed study needs of its finished ones: the last converged u_h, as the
+    successive differences (measure `diff`) and nested iteration start from it. Stored by the run that
+    solved it (Level.solution: its dofs' points and values), it is put back on its own mesh, the very
+    function an uninterrupted run hands on; else the finished levels are solved again, unrecorded (nested
+    strategies the whole chain, levels 0 .. last converged, each from the one before, so the resumed levels
+    start from the same guess; otherwise the last converged level alone). Returns that u_h (or None)."""
     converged = [lv for lv in done if lv.outcome.converged]
     nested = cfg.solver.strategy in ("nested", "auto")
     if not converged or len(done) >= len(cfg.mesh.levels) or not (nested or "diff" in verifier.measures):
         return None
+    if converged[-1].solution is not None:
+        u_h = stored_function(cfg, converged[-1].solution, comm)
+        converged[-1].solution = None  # the record's copy: u_h holds it now
+        if u_h is not None:
+            verifier.previous = u_h if "diff" in verifier.measures else None
+            return u_h
     chain = [lv for lv in done if lv.index <= converged[-1].index] if nested else converged[-1:]
     previous = None
     for lv in chain:
@@ -59,6 +67,36 @@ def resume_verifier(cfg, done, comm, verifier):
                             verifier=verifier if lv is converged[-1] else None, previous=previous)
         previous = again.solution if again.outcome.converged else previous
     return previous
+
+
+def stored_function(cfg, stored, comm):
+    """The stored u_h (points, values) on its level's mesh built again, each dof matched to the stored
+    point it equals bit for bit (the family builds the same points on any partition); None (on every
+    rank) when a dof has none (the mesh is not the one it was stored on)."""
+    domain = meshes.build(cfg.mesh, cfg.contact, cfg.mesh.levels[stored.index], comm)
+    u_h = fem.Function(problem_of(cfg).space(cfg, domain.mesh), name="u_h")
+    match = matching_points(stored.points, u_h.function_space.tabulate_dof_coordinates())
+    if not comm.allreduce(match is not None, op=MPI.LAND):
+        return None
+    u_h.x.array[:] = stored.values[match].ravel()
+    return u_h
+
+
+def matching_points(points, x):
+    """For each row of x (m, 3) the index of the equal row of points (n, 3), or None where one has none:
+    both sorted together (lexsort), an equal stored point sorts right before each of x's."""
+    both = np.concatenate((points, x))
+    mine = np.r_[np.zeros(len(points), dtype=bool), np.ones(len(x), dtype=bool)]
+    order = np.lexsort((mine,) + tuple(both.T[::-1]))
+    at = np.flatnonzero(mine[order])  # where x's points sit in the sorted order
+    if len(at) and at[0] == 0:
+        return None
+    before = order[at - 1]
+    if mine[before].any() or not np.array_equal(both[before], both[order[at]]):
+        return None
+    match = np.empty(len(x), dtype=np.int64)
+    match[order[at] - len(points)] = before
+    return match
 
 
 def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None, previous=None):

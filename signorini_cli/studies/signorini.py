@@ -7,6 +7,7 @@ from dolfinx import fem
 
 from ..meshing import meshes
 from ..meshing.meshes import FACES_2D, FACES_3D
+from ..problems import registry
 from ..problems.registry import problem_of
 from ..solve import solver
 from .level import Level
@@ -43,6 +44,7 @@ def signorini_level(cfg, index, domain, start, previous=None, monitor=None):
     V = vi.space(cfg, domain.mesh)
     u_h = fem.Function(V, name="u_h")
     u_exact = vi.exact_solution(cfg, domain.mesh)
+    registry.check_posed(cfg, domain, u_exact, 0.0)  # u_S a Signorini solution, refused before solving
     bc = vi.dirichlet_condition(V, domain, u_exact)
     outcome, forms = vi.solve(cfg, domain, u_h, bc, previous, monitor)
     errors = vi.errors(u_h, u_exact, domain.h) if u_exact is not None else {}

@@ -49,7 +49,8 @@ class Sweep:
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
-    """For every mesh: the VI's u_{S,h}, then for every α the compliance u_{ε,h} down the ε list."""
+    """For every mesh: the VI's u_{S,h}, then for every α the compliance u_{ε,h} down the ε list (the data
+    checked once per mesh, by signorini_level, before the first solve: both share u_S, f and g)."""
     sweep = Sweep([], [])
     for index, n in enumerate(cfg.mesh.refinements):
         start = time.perf_counter()

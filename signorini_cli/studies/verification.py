@@ -43,9 +43,8 @@ class Verifier:
         converged = level.outcome.converged
         errors = {}
         if forms.u_exact is not None and has_contact and _any_error(wanted):
-            w_h, w_exact, seminorm = _contact_variable(u_h, forms, level)
-            found = measure.contact_errors(w_h, w_exact, level.eps, self.cfg.alpha,
-                                           domain.ds_c(measure.contact_error_degree(u_h.function_space)),
+            points, w_h, w_exact, seminorm = self._contact_variable(u_h, domain, forms, level)
+            found = measure.contact_errors(domain.mesh.comm, points, w_h, w_exact, level.eps, self.cfg.alpha,
                                            seminorm)
             errors.update({k: v for k, v in found.items() if _wanted(k, wanted)})
         # a level that did not converge gets no reference solve and is no base for differences
@@ -69,27 +68,28 @@ class Verifier:
                 if not k.endswith("_ref") or k in ("L2_ref", "H1_ref") or _wanted(k[:-4], wanted)}
 
     def _quantities(self, level, domain, u_h, forms, wanted):
-        """Γ_C quantities of the P1 u_h, exact: nodal max, the measure of {u_h > 0} and ∫[u_h]_+^beta in
-        closed form (contact.positive_power, the rule of the solve's own penalty term)."""
+        """Γ_C quantities of u_h, exact: its largest value, the measure of {u_h > 0} and ∫[u_h]_+^beta
+        (contact.positive_power: for P1 the closed form of the solve's own penalty term)."""
         found = {}
         if forms.gap is not None:  # elasticity: w_h = u_h·n − g0 at the Γ_C facets' vertices
-            return self._normal_quantities(level, domain, u_h, forms, wanted)
+            return self._normal_quantities(level, domain, forms, wanted)
         dofs, points = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
         if "penetration" in wanted:
             found["penetration"] = measure.penetration(u_h, dofs)
         if "contact_measure" in wanted:
             found["contact_measure"] = measure.contact_measure(u_h, dofs, points)
-        alpha = self.cfg.alpha
+        alpha, comm, degree = self.cfg.alpha, domain.mesh.comm, self.cfg.element.degree
+        values = u_h.x.array[dofs]
         if "contact_force" in wanted:
-            found["contact_force"] = self._positive_power(u_h, domain, dofs, points, alpha) / level.eps
+            found["contact_force"] = contact.positive_power(comm, values, points, alpha, degree) / level.eps
         if "energy" in wanted:
-            penalty = self._positive_power(u_h, domain, dofs, points, alpha + 1) / (alpha + 1)
+            penalty = contact.positive_power(comm, values, points, alpha + 1, degree) / (alpha + 1)
             found["energy"] = self._energy(level, domain, u_h, forms, penalty)
         return found
 
-    def _normal_quantities(self, level, domain, u_h, forms, wanted):
-        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0: from its vertex values (penetration,
-        the contact set) and (1/eps)∫[w_h]_+^alpha by the Γ_C error rule (no potential energy)."""
+    def _normal_quantities(self, level, domain, forms, wanted):
+        """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0, from its vertex values: penetration,
+        the contact set and (1/eps)∫[w_h]_+^alpha, all exact (no potential energy)."""
         comm, found = domain.mesh.comm, {}
         values, points = forms.gap.vertex_values(), forms.gap.term.points
         if "penetration" in wanted:
@@ -97,18 +97,24 @@ class Verifier:
         if "contact_measure" in wanted:
             found["contact_measure"] = measure.vertex_contact_measure(comm, values, points)
         if "contact_force" in wanted:
-            ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
-            found["contact_force"] = measure.integrate(measure.positive(forms.gap.w_h) ** self.cfg.alpha,
-                                                       ds_c) / level.eps
+            found["contact_force"] = contact.positive_power(comm, values, points, self.cfg.alpha) / level.eps
         return found
 
-    def _positive_power(self, u_h, domain, dofs, points, beta):
-        """∫_Γc [u_h]_+^beta: in closed form for P1 (the rule of the solve's own penalty term), else by the
-        Γ_C error quadrature of the element."""
-        if self.cfg.element.degree == 1:
-            return contact.positive_power(u_h, dofs, points, beta)
-        ds_c = domain.ds_c(measure.contact_error_degree(u_h.function_space))
-        return measure.integrate(measure.positive(u_h) ** beta, ds_c)
+    def _contact_variable(self, u_h, domain, forms, level):
+        """(points, w_h, w_ex, seminorm) the Γ_C errors read: the Γ_C facets' vertices, u_h's facet dof
+        values, u_ex(facets, x) and |e|_H1 for the scalar problem; for elasticity w = u·n − g0 (w_h at the
+        vertices, as the solve's contact term has it) and the energy seminorm a(e, e)^(1/2) of e = u − u_h
+        (Lemma 3.1's analogue)."""
+        if forms.gap is None:
+            dofs, points = measure.contact_facet_dofs(u_h.function_space, domain.facet_tags, CONTACT)
+            u_ex = problem_of(self.cfg).numpy_exact(self.cfg, domain.mesh.geometry.dim)
+            vertices = points[:, :domain.mesh.topology.dim]
+            return vertices, u_h.x.array[dofs], lambda facets, x: u_ex(x, level.eps), level.errors["H1"]
+        msh = u_h.function_space.mesh
+        degree = measure.error_degree(u_h.function_space, level.h)
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
+        a_ee = measure.integrate(forms.gap.energy(forms.u_exact - u_h), dx)
+        return forms.gap.term.points, forms.gap.vertex_values(), forms.gap.exact(level.eps), abs(a_ee) ** 0.5
 
     def _energy(self, level, domain, u_h, forms, penalty):
         msh = domain.mesh
@@ -132,18 +138,6 @@ class Verifier:
             level.extra[name] = quantities[name] if ok else None
         if self.reference is not None:
             level.extra["reference_time_s"] = self.reference_time_s if ok else 0.0  # not part of time_s
-
-
-def _contact_variable(u_h, forms, level):
-    """(w_h, w_ex, seminorm) the Γ_C errors read: u_h, u_ex and |e|_H1 for the scalar problem; for
-    elasticity w = u·n − g0 and the energy seminorm a(e, e)^(1/2) of e = u − u_h (Lemma 3.1's analogue)."""
-    if forms.gap is None:
-        return u_h, forms.u_exact, level.errors["H1"]
-    msh = u_h.function_space.mesh
-    degree = measure.error_degree(u_h.function_space, level.h)
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
-    a_ee = measure.integrate(forms.gap.energy(forms.u_exact - u_h), dx)
-    return forms.gap.w_h, forms.gap.w_exact, abs(a_ee) ** 0.5
 
 
 def error_columns(cfg, wanted, has_contact, with_reference):

@@ -1,5 +1,7 @@
 """Rates: observed from the measured h, fitted over the last levels, proven by the paper, and the GCI."""
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -55,6 +57,39 @@ def test_fitted_log_factor_reaches_two_on_h2_ln_h():
     e = [x**2 * -math.log(x) for x in h]  # the bound of Lemma 4.5, exactly
     assert rates.fitted(h, e, [True] * 5, log_factor=True) == pytest.approx(2, rel=1e-12)
     assert rates.fitted(h, e, [True] * 5) < 1.9  # the plain slope sits under 2, as the paper warns
+
+
+def test_slope_fits_the_last_k_positive_points():
+    x = [1.0, 2.0, 4.0, 8.0]
+    assert rates.slope(x, [1.0, 1.0, 4.0, 8.0], k=2) == pytest.approx(1.0, rel=1e-12)
+    assert rates.slope(x, [1.0, 1.0, 4.0, 8.0], k=3) == pytest.approx(1.5, rel=1e-12)  # slopes 2 then 1
+    assert rates.slope(x, [1.0, None, 0.0, 8.0]) == pytest.approx(1.0, rel=1e-12)  # only (1, 1) and (8, 8)
+    assert rates.slope([1.0], [1.0]) is None and rates.slope([2.0, 2.0], [1.0, 3.0]) is None
+
+
+def test_default_fit_levels_is_the_configs():
+    from signorini_cli.config import schema
+    assert schema.Verification().fit_levels == rates.FIT_LEVELS
+
+
+ROOT = Path(__file__).resolve().parents[2]
+# a least-squares fit, a quotient of two logarithms (a rate between two levels), differences of logarithms
+OTHER_FIT = re.compile(r"polyfit|lstsq|linregress|log\w*\([^()]*(\([^()]*\))?[^()]*\)\s*/\s*\(?\s*(np\.|math\.)?log|"
+                       r"diff\(\s*(np\.)?log")
+
+
+def test_one_rate_fit_in_the_package_and_its_scripts():
+    # every rate (errors in h, model errors in eps, costs in dofs) goes through analysis/rates.py
+    sources = sorted((ROOT / "signorini_cli").rglob("*.py")) + sorted((ROOT / "scripts").glob("*.py"))
+    found = [f"{path.relative_to(ROOT)}:{k}" for path in sources if path.name != "rates.py" or path.parent.name !=
+             "analysis" for k, line in enumerate(path.read_text().splitlines(), 1) if OTHER_FIT.search(line)]
+    assert not found
+
+
+def test_the_scan_sees_the_usual_forms():
+    for line in ("p = np.polyfit(np.log(h), np.log(e), 1)[0]", "math.log(e0 / e1) / math.log(h0 / h1)",
+                 "np.diff(np.log(e)) / np.diff(np.log(h))", "np.log(e[1:]/e[:-1]) / np.log(h[1:]/h[:-1])"):
+        assert OTHER_FIT.search(line), line
 
 
 # --- the paper's table ----------------------------------------------------------------------------

@@ -13,6 +13,7 @@ from mpi4py import MPI
 
 from signorini_cli import config, load, run
 from signorini_cli.problems import measure
+from signorini_cli.record import results
 from conftest import U_SIGNORINI, merge
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -64,10 +65,14 @@ def test_run_passes_each_level_u_h_and_writes_nothing(raw_config, tmp_path, comm
 
 
 def test_run_writes_when_asked(raw_config, tmp_path):
+    """The record `signorini run` keeps: every level's row with the time its writing took, status complete."""
     cfg = load(raw_config, output__dir=str(tmp_path))
-    run(cfg, comm=MPI.COMM_SELF, write=True)
+    study = run(cfg, comm=MPI.COMM_SELF, write=True)
     assert (tmp_path / "t" / "rates.csv").read_text().startswith("level,N,h,dofs,epsilon,converged,newton_its,L2")
-    assert (tmp_path / "t" / "study.h5").exists()
+    assert (tmp_path / "t" / "status.txt").read_text() == "complete\n" and study.converged and study.met
+    written = results.load(tmp_path / "t")
+    assert all(row["t_output"] > 0 for row in written.rows)
+    assert [row["L2"] for row in written.rows] == [row["L2"] for row in study.rows]
 
 
 def check_page_example(tmp_path, monkeypatch, capsys):

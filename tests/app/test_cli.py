@@ -75,7 +75,7 @@ def test_expect_missed_exit_1_with_verdict(tmp_path, capsys):
     path = write(tmp_path, mesh={"refinements": [4, 8]}, expect={"rates": {"H1": 3.0}})
     assert cli.main(["run", path, "--set", "output.plots=false"]) == cli.EXIT_EXPECTATION_NOT_MET
     out = capsys.readouterr().out
-    assert "verification: rates fitted over the last 3 levels" in out
+    assert "verification: rate = slope of log e against log h over the last 3 levels" in out
     assert "expect H1 >= 3 - 0.1: NOT MET" in out
     with open(tmp_path / "out" / "t" / "summary.csv") as f:
         rows = {(r["kind"], r["name"]): r for r in csv.DictReader(f)}

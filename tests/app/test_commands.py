@@ -87,7 +87,7 @@ class Interrupt(Exception):
 
 def stop_after(cfg, k):
     def write_then_stop(levels):
-        results.write(cfg, levels)
+        results.write(studies.study_of(cfg, levels))
         if len(levels) == k:
             raise Interrupt
     with pytest.raises(Interrupt):
@@ -129,7 +129,7 @@ def test_report_not_a_study_exit_2(tmp_path, capsys):
 def test_compare_two_studies(make_config, tmp_path, capsys):
     for theta in (1, 10):
         cfg = make_config(study=f"theta{theta}", epsilon={"theta": theta})
-        results.write(cfg, studies.run_study(cfg))
+        results.write(studies.study_of(cfg, studies.run_study(cfg)))
     folders = [str(tmp_path / "results" / f"theta{t}") for t in (1, 10)]
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
@@ -147,7 +147,7 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
 @pytest.mark.parametrize("labels", [["X", "X"], None])
 def test_compare_refuses_one_label_for_two_studies(make_config, tmp_path, capsys, labels):
     cfg = make_config()
-    results.write(cfg, studies.run_study(cfg))
+    results.write(studies.study_of(cfg, studies.run_study(cfg)))
     folder = str(cfg.output_dir)
     args = ["compare", folder, folder if labels is None else str(tmp_path / "results" / "t")]
     args += [f"--label={label}" for label in labels or []]

@@ -142,10 +142,10 @@ def test_signal_while_writing_waits_for_the_level(tmp_path, monkeypatch):
     config, out = write_config(tmp_path), str(tmp_path / "out")
     write_files = results.write_files
 
-    def write_with_signal(cfg, levels, *args):
-        if len(levels) == 2:
+    def write_with_signal(study, *args):
+        if study.solves == 2:
             os.kill(os.getpid(), signal.SIGTERM)
-        write_files(cfg, levels, *args)
+        write_files(study, *args)
     monkeypatch.setattr(results, "write_files", write_with_signal)
     assert cli.main(["run", config, "--output", out]) == 128 + signal.SIGTERM
     check_kept(out, 2)

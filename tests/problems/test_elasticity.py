@@ -58,8 +58,8 @@ BAD = [
     pytest.param({"material": {"nu": 0.5}}, "material.nu: must be in (-1, 0.5)", id="nu-incompressible"),
     pytest.param({"material": {"nu": -1.0}}, "material.nu: must be in (-1, 0.5)", id="nu-minus-one"),
     pytest.param({"material": {"rho": 1.0}}, "material.rho: unknown key in material", id="material-unknown"),
-    pytest.param({"problem": {"f": "1"}}, "problem.f: only meaningful for the scalar problem", id="f-on-elastic"),
-    pytest.param({"problem": {"exact_solves": "signorini"}}, "problem.exact_solves: only meaningful for the scalar",
+    pytest.param({"problem": {"f": "1"}}, "problem.f: only meaningful with problem.pde: poisson", id="f-on-elastic"),
+    pytest.param({"problem": {"exact_solves": "signorini"}}, "problem.exact_solves: only meaningful with problem.pde: poisson",
                  id="exact-solves-on-elastic"),
     pytest.param({"problem": {"normal": [0, 0]}}, "problem.normal: must not be zero", id="normal-zero"),
     pytest.param({"problem": {"pde": "stokes"}}, "problem.pde: 'stokes' is not one of poisson, elasticity", id="pde"),
@@ -182,7 +182,7 @@ def test_rigid_motions_span_the_stiffness_kernel(tmp_path, dim):
 
 def test_lame_plane_strain():
     """μ = E/(2(1+ν)), λ = Eν/((1+ν)(1−2ν)): E = 2.6, ν = 0.3 give μ = 1, λ = 1.5."""
-    mu, lmbda = elasticity.lame(config.settings.Material(E=2.6, nu=0.3))
+    mu, lmbda = elasticity.lame(config.pde_elasticity.Material(E=2.6, nu=0.3))
     assert mu == pytest.approx(1.0, rel=1e-15) and lmbda == pytest.approx(1.5, rel=1e-15)
 
 

@@ -1,5 +1,6 @@
 """Problems refused before solving: data nan or infinite where the solve evaluates them, and a
 manufactured Signorini solution that violates u_S <= 0, ∂_n u_S <= 0, u_S ∂_n u_S = 0 on Γ_C."""
+import re
 import warnings
 
 import pytest
@@ -63,16 +64,18 @@ def test_cli_exit_2_one_line(tmp_path, capsys):
 
 
 @pytest.mark.fast
-def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
-    """Within registry.checked_once() (a map) the data are checked once on a mesh, again for other data,
-    another mesh, or another ε when the data use eps; a refusal is never remembered as a pass."""
+def test_checked_once_per_mesh_family_and_data(make_config, monkeypatch):
+    """Within registry.checked_once() (a study, a map) the data are checked at the cells' points once per
+    mesh family, again for other data or another ε when the data use eps (the vertices on every level); a
+    refusal is never remembered as a pass."""
     from signorini_cli.problems import registry
     calls = []
-    monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest: calls.append(domain) or
-                        posed.check(cfg, domain, *rest))
+    monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest, cells: calls.append(cells) or
+                        posed.check(cfg, domain, *rest, cells=cells))
     plain, with_eps = make_config(), make_config(problem={"exact": "sin(2*pi*x)*(1-y)**2 + eps*x*y"})
     defined = [make_config(problem={"define": {"s": "sin(2*pi*x)"}, "exact": "s*(1-y)**2"}) for _ in range(2)]
     bad = make_config(problem={"exact": None, "f": "sqrt(0.5 - x)"})
+    crossed = make_config(mesh={"diagonal": "crossed"})
     domain, other = (meshes.build(plain.mesh, plain.contact, n, MPI.COMM_SELF) for n in (4, 8))
 
     def check_on(cfg, on, eps_value=0.1):
@@ -80,12 +83,33 @@ def test_checked_once_per_mesh_and_data(make_config, monkeypatch):
                              eps_value)
     with registry.checked_once():
         for cfg, on, eps_value in [(plain, domain, 0.1), (plain, domain, 0.2), (plain, other, 0.1),
-                                   (with_eps, domain, 0.1), (with_eps, domain, 0.1), (with_eps, domain, 0.2)]:
+                                   (with_eps, domain, 0.1), (with_eps, other, 0.1), (with_eps, domain, 0.2)]:
             check_on(cfg, on, eps_value)
-        assert len(calls) == 4  # plain on each mesh (whatever ε), with_eps at each of its two ε
+        # plain once for the family whatever the mesh and ε, with_eps at each of its two ε
+        assert calls == [True, False, False, True, False, True]
         for cfg in defined:  # the same definitions, parsed twice (as two points of a map are)
             check_on(cfg, domain)
-        assert len(calls) == 5
+        assert calls[-2:] == [True, False]
+        check_on(crossed, domain)  # another family
+        assert calls[-1] is True
         for _ in range(2):
             with pytest.raises(ConfigError, match="is nan at"):
                 check_on(bad, domain)
+
+
+@pytest.mark.parametrize("changes, message", [
+    pytest.param({"problem": {"pde": "elasticity", "exact": ["sqrt(x-0.5)", "0"]}, "material": {"E": 1.0, "nu": 0.3}},
+                 r"problem.exact: sqrt\(x-0.5\) is nan at \(", id="elastic-nan"),
+    pytest.param({"study_type": "signorini", "alpha": None, "epsilon": None,
+                  "problem": {"exact": "sin(2*pi*x)*(1-y)**2", "exact_solves": "signorini"}},
+                 r"problem.exact: not a Signorini solution: u_S > 0 on Γ_C", id="signorini-study-u_S-positive"),
+])
+def test_every_study_type_refuses_before_solving(tmp_path, capsys, changes, message):
+    """Elasticity (else DIVERGED_FNORM_NAN) and the VI's study type (else solved and reported, rates near 0)
+    check their problem too: exit 2, one line."""
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump(merge(merge(BASE, {"output": {"dir": str(tmp_path / "out")}}), changes)))
+    assert cli.main(["run", str(path)]) == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"signorini: error: {path}: ")
+    assert re.search(message, err)

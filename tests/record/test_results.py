@@ -30,7 +30,7 @@ def test_half_finished_study_is_readable(partial_study):
 
 def test_h5_records_resolved_config_column_order_and_revision(make_config):
     cfg = make_config(mesh={"refinements": [4]})
-    rows = results.write(cfg, studies.run_study(cfg, comm=MPI.COMM_SELF), comm=MPI.COMM_SELF)
+    rows = results.write(studies.study_of(cfg, studies.run_study(cfg, comm=MPI.COMM_SELF)), comm=MPI.COMM_SELF)
     with h5py.File(cfg.output_dir / "study.h5") as h5:
         assert list(h5["table"].attrs["columns"]) == list(rows[0])
         assert yaml.safe_load(h5.attrs["config_resolved"])["output"]["digits"] == 3  # defaults filled in
@@ -44,7 +44,7 @@ def test_h5_records_resolved_config_column_order_and_revision(make_config):
 def test_status_and_config_hash_recorded(make_config):
     from signorini_cli import config
     cfg = make_config()
-    results.write(cfg, studies.run_study(cfg), status="complete")
+    results.write(studies.study_of(cfg, studies.run_study(cfg)), status="complete")
     assert (cfg.output_dir / results.STATUS_FILE).read_text() == "complete\n"
     with h5py.File(cfg.output_dir / "study.h5") as h5:
         assert h5.attrs["status"] == "complete" and h5.attrs["config_hash"] == config.fingerprint(cfg)
@@ -55,7 +55,7 @@ def test_level_group_keeps_every_solve(make_config):
     # max_it = 4 is one short at N = 16 from u = 0 (5 needed): auto's attempt fails; continuation then
     # solves at eps_0 = 1 (4 iterations), 0.1 (2: easy, so the ratio squares to 0.01) and eps = h (2)
     cfg = make_config(mesh={"refinements": [16]}, solver={"max_it": 4})
-    results.write(cfg, studies.run_study(cfg))
+    results.write(studies.study_of(cfg, studies.run_study(cfg)))
     with h5py.File(cfg.output_dir / "study.h5") as h5:
         level = h5["level_00"]
         eps = level.attrs["epsilon"]
@@ -89,7 +89,7 @@ def test_every_table_reads_back_as_written(make_config):
     cfg = make_config(mesh={"refinements": [4, 8]})
     levels = studies.run_study(cfg, comm=MPI.COMM_SELF)
     named = studies.of(cfg.study_type).tables(cfg, levels)
-    results.write_files(cfg, levels, 1)
+    results.write_files(studies.study_of(cfg, levels), 1)
     study = results.load(cfg.output_dir)
     assert list(study.tables) == list(named) == ["rates", "work_precision"]
     for name, rows in named.items():

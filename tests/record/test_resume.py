@@ -4,6 +4,7 @@ import shutil
 from pathlib import Path
 
 import h5py
+import numpy as np
 import pytest
 import yaml
 from mpi4py import MPI
@@ -11,6 +12,7 @@ from mpi4py import MPI
 from signorini_cli import config, studies
 from signorini_cli.app import cli
 from signorini_cli.record import results, resume
+from signorini_cli.studies import refinement
 from conftest import BASE, merge
 
 
@@ -30,7 +32,7 @@ def test_read_levels_round_trip(make_config):
     # from 0 (strategy plain) N=4 converges in 4 Newton steps, N=16 needs 5: a converged and a failed
     # level come back
     cfg = make_config(mesh={"refinements": [4, 16]}, solver={"max_it": 4, "strategy": "plain"})
-    levels = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    levels = studies.run_study(cfg, on_level=lambda done: results.write(studies.study_of(cfg, done)))
     assert [lv.outcome.converged for lv in levels] == [True, False]
     assert resume.read_levels(cfg) == levels
 
@@ -51,20 +53,29 @@ def test_resume_accepts_comment_and_description_changes(tmp_path):
     assert cli.main(["run", path, "--resume"]) == cli.EXIT_OK
 
 
-def test_resume_extends_a_finished_study(tmp_path, capsys):
-    path = write_config(tmp_path)  # N = 4, 8, finished
+@pytest.mark.parametrize("measures", [pytest.param(None, id="default"), pytest.param(["diff"], id="diff")])
+def test_resume_extends_a_finished_study(tmp_path, capsys, monkeypatch, measures):
+    """The finished levels' rows are kept and none is solved again: the new level starts from the stored
+    finest u_h (solution.h5) and its row is an uninterrupted run's (the successive difference included)."""
+    path = write_config(tmp_path, verification={"measures": measures})  # N = 4, 8, finished
     assert cli.main(["run", path, "--quiet"]) == cli.EXIT_OK
     before = rows(tmp_path)
     with h5py.File(Path(tmp_path) / "out" / "t" / "study.h5") as h5:
         kept = [h5[f"level_{k:02d}"].attrs["time_s"] for k in (0, 1)]
+    solved, solve_level = [], refinement.solve_level
+    monkeypatch.setattr(refinement, "solve_level", lambda cfg, index, *rest, **kw: solved.append(index) or
+                        solve_level(cfg, index, *rest, **kw))
     assert cli.main(["run", path, "--resume", "--quiet", "--set", "mesh.refinements=[4, 8, 16]"]) == cli.EXIT_OK
+    assert solved == [2]
+    monkeypatch.undo()
     extended = rows(tmp_path)
     with h5py.File(Path(tmp_path) / "out" / "t" / "study.h5") as h5:
         assert [h5[f"level_{k:02d}"].attrs["time_s"] for k in (0, 1)] == kept  # read back, not solved again
     assert extended[:2] == before
     fresh = Path(tmp_path) / "fresh"
     fresh.mkdir()
-    assert cli.main(["run", write_config(fresh, mesh={"refinements": [4, 8, 16]}), "--quiet"]) == cli.EXIT_OK
+    assert cli.main(["run", write_config(fresh, mesh={"refinements": [4, 8, 16]}, verification={"measures": measures}),
+                     "--quiet"]) == cli.EXIT_OK
     assert extended == rows(fresh)  # the rows of an uninterrupted run (timings aside)
     # a list that does not begin with the old one is another study
     assert cli.main(["run", path, "--resume", "--set", "mesh.refinements=[8, 16, 32]"]) == cli.EXIT_BAD_INPUT
@@ -123,8 +134,8 @@ class Stop(Exception):
 
 @pytest.mark.mpi
 def test_resume_two_ranks(tmp_path):
-    """Two ranks stop after level 1 (results written), then `--resume` on two ranks finishes the study
-    with the table of an uninterrupted 2-rank run."""
+    """Two ranks stop after level 1 (results and its u_h written), then `--resume` on two ranks finishes the
+    study from the stored u_h with the table of an uninterrupted 2-rank run."""
     comm = MPI.COMM_WORLD
     assert comm.size == 2
     folder = Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None))
@@ -137,8 +148,9 @@ def test_resume_two_ranks(tmp_path):
         paths[name] = str(folder / name / "c.yaml")
     cfg = config.load(paths["cut"])
 
-    def stop_after_two(levels):
-        results.write(cfg, levels, status=f"interrupted at level {len(levels)}")
+    def stop_after_two(levels):  # as the run's own recording does: the table, then the level's u_h
+        results.write(studies.study_of(cfg, levels), status=f"interrupted at level {len(levels)}")
+        resume.keep_solution(cfg, levels, comm)
         if len(levels) == 2:
             raise Stop
     with pytest.raises(Stop):
@@ -225,7 +237,7 @@ def test_resume_reads_levels_by_index_and_keeps_every_row(tmp_path):
     cfg = config.load(path)
     levels = resume.read_levels(cfg)
     assert [lv.index for lv in levels] == [0, 1] and [lv.n for lv in levels] == [4, 8]
-    results.write(cfg, levels[:1])  # as a run stopped after level 0 leaves it
+    results.write(studies.study_of(cfg, levels[:1]))  # as a run stopped after level 0 leaves it
     assert cli.main(["run", path, "--resume", "--quiet"]) == cli.EXIT_OK
     assert same_table(rows(tmp_path), complete)
 
@@ -235,3 +247,16 @@ def test_resume_refuses_a_record_without_its_table(tmp_path, capsys):
     with h5py.File(folder / "study.h5", "a") as h5:
         del h5["table"]
     refused_once(path, capsys, "no table group")
+
+
+@pytest.mark.fast
+def test_stored_points_matched_bit_for_bit():
+    """Each dof point finds the stored point it equals (any order, a rank's subset); a point stored
+    nowhere (another mesh) gives None, and the finished levels are then solved again."""
+    points = np.random.default_rng(3).random((50, 3))
+    subset = np.random.default_rng(4).permutation(50)[:20]
+    assert np.array_equal(refinement.matching_points(points, points[subset]), subset)
+    moved = points[subset].copy()
+    moved[5, 1] += 1e-15
+    assert refinement.matching_points(points, moved) is None
+    assert refinement.matching_points(points, np.zeros((0, 3))).size == 0

@@ -12,22 +12,22 @@ pytestmark = pytest.mark.fast
 VARIED = ("epsilon.theta", "alpha")
 
 
-def row(theta, alpha, rate, proven, verdict, plain=None):
+def row(theta, alpha, rate, proven, verdict, log=None):
     return {"epsilon.theta": theta, "alpha": alpha, "rate_L2": rate, "rate_L2_lo": rate - 0.05,
-            "rate_L2_hi": rate + 0.05, "rate_L2_plain": rate if plain is None else plain, "proven_L2": proven,
+            "rate_L2_hi": rate + 0.05, "rate_L2_log": log, "proven_L2": proven,
             "verdict_L2": verdict, "L2": 1e-3, "converged": True, "newton_its": 12, "time_s": 0.5,
             "status": "complete"}
 
 
 ROWS = [row(0.1, 1, 1.98, None, "not covered"), row(0.1, 2, 1.5, 2.0, "below"),
-        row(10, 1, 2.01, None, "not covered"), row(10, 2, 2.4, 2.0, "exceeds", plain=2.2)]
+        row(10, 1, 2.01, None, "not covered"), row(10, 2, 2.4, 2.0, "exceeds", log=2.6)]
 
 
 def test_map_csv_columns_in_order(tmp_path):
     maps.write(tmp_path, ROWS, VARIED, draw=False)
     with open(tmp_path / maps.MAP_FILE) as f:
         header = next(csv.reader(f))
-    assert header == ["epsilon.theta", "alpha", "rate_L2", "rate_L2_lo", "rate_L2_hi", "rate_L2_plain", "proven_L2",
+    assert header == ["epsilon.theta", "alpha", "rate_L2", "rate_L2_lo", "rate_L2_hi", "rate_L2_log", "proven_L2",
                       "verdict_L2", "L2", "converged", "newton_its", "time_s", "status"]
 
 
@@ -49,12 +49,12 @@ def test_heat_map_panel_per_value_of_the_other_keys():
     assert [ax.get_title() for ax in panels] == ["epsilon.law=theta_h", "epsilon.law=theta_sqrt_h"]
 
 
-def test_rate_lines_draw_the_plain_fit_where_it_differs():
+def test_rate_lines_draw_the_log_corrected_fit_where_there_is_one():
     fig = maps.rate_lines(ROWS, "L2", "epsilon.theta", ["alpha"])
     lines = fig.axes[0].get_lines()
-    # alpha 1: fit, proven (no plain: equal); alpha 2: fit, plain (differs at theta 10), proven
+    # alpha 1: rate, proven (no log-corrected fit); alpha 2: rate, log-corrected (at theta 10 only), proven
     assert len(lines) == 5
-    assert list(lines[3].get_ydata()) == [1.5, 2.2]
+    assert np.isnan(lines[3].get_ydata()[0]) and lines[3].get_ydata()[1] == 2.6
 
 
 def test_summary_fits_the_terminal():

@@ -125,15 +125,6 @@ def test_default_latex_table_fits_a_default_article(tmp_path):
     assert "Overfull" not in (tmp_path / "doc.log").read_text()
 
 
-def test_fitted_slope_reads_the_last_k_levels():
-    # e = h^2 on the coarse levels, then e = h^1: the slope depends on how many levels are fitted
-    h = [0.4, 0.2, 0.1, 0.05]
-    e = [0.16, 0.04, 0.01, 0.005]
-    assert tables.fitted_slope(h, e, k=2) == pytest.approx(1.0, rel=1e-12)
-    assert tables.fitted_slope(h, e, k=3) == pytest.approx(1.5, rel=1e-12)  # slopes 2 then 1: LSQ line 1.5
-    assert tables.fitted_slope(h[:1], [1.0]) is None
-
-
 def test_summary_table_one_line_per_study():
     lines = tables.summary_table({"a": KNOWN, "b": KNOWN[:1]}).splitlines()
     assert lines[0].split() == ["L²", "H¹"] and lines[1].split()[:4] == ["study", "levels", "finest", "h"]

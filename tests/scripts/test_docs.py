@@ -19,7 +19,7 @@ def test_results_format_h5py_example(make_config, tmp_path, monkeypatch, capsys)
     (example,) = python_blocks(DOCS / "results-format.md")
     assert len(example.strip().splitlines()) <= 12  # "a ~10-line h5py example"
     cfg = make_config(study="demo", output={"dir": str(tmp_path / "results")})
-    results.write(cfg, studies.run_study(cfg, comm=MPI.COMM_SELF))
+    results.write(studies.study_of(cfg, studies.run_study(cfg, comm=MPI.COMM_SELF)))
     script = tmp_path / "example.py"
     script.write_text(example)
     monkeypatch.chdir(tmp_path)  # the example opens results/demo/study.h5

@@ -128,7 +128,7 @@ def test_total_error_writes_spec_tables(make_config):
     cfg = make_config(study_type="total_error", alpha=None, epsilon=None,
                       problem={"exact": U_SIGNORINI, "exact_solves": "signorini"},
                       limit={"alpha": [2], "exponent": [1, 2]})
-    total = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    total = studies.run_study(cfg, on_level=lambda done: results.write(studies.study_of(cfg, done)))
     assert all(level.outcome.converged for level in total)
     assert list(total.studies) == ["alpha2-p1", "alpha2-p2", "signorini"]
     for name in total.studies:

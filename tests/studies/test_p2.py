@@ -26,12 +26,12 @@ def test_p2_rates(make_config):
     for norm, order in (("L2", 3), ("H1", 2)):
         e = np.array([lv.errors[norm] for lv in levels])
         assert np.log(e[1:] / e[:-1]) / np.log(h[1:] / h[:-1]) == pytest.approx([order] * 2, abs=0.1)
-    assert {lv.extra["contact_quadrature"] for lv in levels} == {"8"}  # the default Gauss rule, recorded
+    assert {lv.extra["contact_quadrature"] for lv in levels} == {"exact"}  # the default rule, recorded
 
 
 @pytest.mark.mpi
 def test_p2_same_errors_on_two_ranks(make_config):
-    """Every error of the P2 study on 2 ranks is the serial one to 1e-8 relative: the Gauss rule, the error
+    """Every error of the P2 study on 2 ranks is the serial one to 1e-8 relative: the contact rule, the error
     quadrature and Newton (converged to |F| < 1e-10 or so) are partition independent up to that."""
     cfg = make_config(**P2)
     serial, parallel = (errors(studies.run_study(cfg, comm=comm)) for comm in (MPI.COMM_SELF, MPI.COMM_WORLD))

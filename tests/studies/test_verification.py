@@ -24,7 +24,7 @@ GAMMA_C = ["L2_gc", "rate_L2_gc", "pos_gc", "rate_pos_gc", "pos_gc_scaled", "rat
 
 def test_manufactured_study_gamma_c_columns(make_config):
     cfg = make_config(mesh={"refinements": [8, 16, 32]})
-    levels = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done))
+    levels = studies.run_study(cfg, on_level=lambda done: results.write(studies.study_of(cfg, done)))
     with open(cfg.output_dir / "rates.csv") as f:
         rows = list(csv.DictReader(f))
     header = list(rows[0])

@@ -45,7 +45,8 @@ def test_errors_of_the_fast_paths_equal_the_plain_path(scene, make_config):
 
 def test_phase_columns_split_the_level_time(tmp_path, make_config):
     cfg = make_config(mesh={"refinements": [8, 16, 32]}, solver={"linear_floor": True})
-    levels = studies.run_study(cfg, on_level=lambda done: results.write(cfg, done), comm=MPI.COMM_SELF)
+    levels = studies.run_study(cfg, on_level=lambda done: results.write(studies.study_of(cfg, done)),
+                               comm=MPI.COMM_SELF)
     rows = studies.level.rate_table(levels)
     for row in rows:
         # the level's own phases split time_s; t_output (the record written after time_s was taken) apart

@@ -1,0 +1,17 @@
+"""The rate map's config (study_type: map, docs/maps.md): its own block `map` (config/map.py), whose points
+are refinement studies, each validated as one."""
+
+NAME = "map"
+POINTS = True  # its points are studies of their own: config/map.py reads its block
+VI = False
+GEOMETRY = True
+FIELDS = True
+DEGREES = (1, 2)
+UNUSED = {}
+LIMIT = None
+SECTION = None
+
+
+def check_config(cfg, raw):
+    """Rules across sections: each point's, checked when config/map.py validates it."""
+    return cfg

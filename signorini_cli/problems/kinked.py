@@ -1,0 +1,141 @@
+"""Integrals over Γ_C facets of integrands that kink inside them ([u]_+, |[u]_+ − [u_h]_+|^(α+1)): each facet
+is cut where a kink function changes sign (closed form for polynomials along the cut, else a bracketed zero),
+and each smooth piece is integrated by a double-exponential (tanh-sinh) rule, whose nodes crowd towards the
+piece's ends: an end where the integrand is only C^p (|t − t0|^p) costs it no accuracy."""
+import numpy as np
+
+# tanh-sinh: t = (1 + tanh(π/2 sinh s))/2, s in [-RANGE, RANGE] by STEP; at s = ±RANGE the weight is 1e-17
+# of the piece, and the rule's error for a piece analytic inside is below 1e-15 from STEP = 1/8 on (halving
+# STEP to 1/16 changes the integrals of tests/problems/test_kinked.py by less than 1e-15 relative)
+STEP = 1 / 8
+RANGE = 3.15
+SAMPLES = 8  # sub-intervals per cut searched for sign changes of a kink function that is no polynomial
+ZERO_ITERATIONS = 60  # Illinois steps locating such a zero in a sub-interval where it changes sign
+
+
+def tanh_sinh():
+    """Nodes and weights of the tanh-sinh rule on [0, 1]: ∫_0^1 f ≈ Σ w f(t)."""
+    s = np.arange(-RANGE, RANGE + STEP / 2, STEP)
+    v = np.pi / 2 * np.sinh(s)
+    t = 1 / (1 + np.exp(-2 * v))  # (1 + tanh v)/2, accurate near both ends
+    w = STEP * np.pi / 4 * np.cosh(s) / np.cosh(v) ** 2
+    return t, w
+
+
+NODES, WEIGHTS = tanh_sinh()
+
+
+class Cuts:
+    """Straight cuts through facets: from barycentric coordinates lam0 to lam1 (M, n+1) and points x0 to x1
+    (M, 3), each cut belonging to the facet `facet` (M,)."""
+
+    def __init__(self, facet, lam0, lam1, x0, x1):
+        self.facet, self.lam0, self.lam1, self.x0, self.x1 = facet, lam0, lam1, x0, x1
+
+    def at(self, rows, t):
+        """(facets, lam, x) at the parameters t (P, q) of the cuts `rows` (P,)."""
+        lam = self.lam0[rows, None] + t[..., None] * (self.lam1 - self.lam0)[rows, None]
+        x = self.x0[rows, None] + t[..., None] * (self.x1 - self.x0)[rows, None]
+        return self.facet[rows], lam, x
+
+
+def integrate(cuts, integrand, kinks):
+    """∫_0^1 integrand dt along each cut, (M, ...): integrand(facets, lam, x) -> (P, q, ...); the cut
+    split at the zeros of every kink function k(facets, lam, x) -> (P, q), given as (k, polynomial): a
+    polynomial of degree <= 2 along the cut has its zeros in closed form, any other is bracketed on
+    SAMPLES sub-intervals (two zeros closer than one sub-interval may go unseen: their integrand is as
+    small as the function between them)."""
+    rows, t, width = _pieces(_breaks([cuts], kinks))
+    values = integrand(*cuts.at(rows, t))
+    found = np.einsum("pq...,q,p->p...", values, WEIGHTS, width)
+    total = np.zeros((len(cuts.facet),) + found.shape[1:])
+    np.add.at(total, rows, found)
+    return total
+
+
+def _breaks(cuts_list, kinks):
+    """0, 1 and the zeros of every kink along each of the cuts (all with the same rows): (M, B) sorted,
+    nan (no zero) last."""
+    m = len(cuts_list[0].facet)
+    breaks = [np.zeros((m, 1)), np.ones((m, 1))]
+    for cuts in cuts_list:
+        for kink, polynomial in kinks:
+            breaks.append(_quadratic_zeros(cuts, kink) if polynomial else _bracketed_zeros(cuts, kink))
+    return np.sort(np.concatenate(breaks, axis=1), axis=1)
+
+
+def _pieces(breaks):
+    """(rows, t, width): the pieces of positive width between successive breaks, their tanh-sinh nodes
+    t (P, q) and widths (P,)."""
+    lo, hi = breaks[:, :-1], breaks[:, 1:]
+    piece = hi > lo  # False for nan
+    rows = np.broadcast_to(np.arange(len(breaks))[:, None], lo.shape)[piece]
+    lo, hi = lo[piece], hi[piece]
+    return rows, lo[:, None] + (hi - lo)[:, None] * NODES, hi - lo
+
+
+def _quadratic_zeros(cuts, kink):
+    """The zeros in (0, 1) of the quadratic through the kink's values at t = 0, 1/2, 1: (M, 2), nan if none."""
+    m = len(cuts.facet)
+    p = kink(*cuts.at(np.arange(m), np.broadcast_to([0.0, 1.0, 0.5], (m, 3))))
+    a, b, c = p[:, 0], 4 * p[:, 2] - 3 * p[:, 0] - p[:, 1], 2 * p[:, 0] + 2 * p[:, 1] - 4 * p[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = b**2 - 4 * a * c
+        q = -(b + np.copysign(np.sqrt(np.where(disc >= 0, disc, np.nan)), b)) / 2  # no cancellation
+        roots = np.stack((q / c, a / q), axis=1)  # c ~ 0 (a line): q / c leaves [0, 1], a / q is its zero
+    return np.where((roots > 0) & (roots < 1), roots, np.nan)
+
+
+def _bracketed_zeros(cuts, kink):
+    """The zeros of kink along each cut, one per sub-interval of SAMPLES where it changes sign: (M, SAMPLES)."""
+    m = len(cuts.facet)
+    grid = np.broadcast_to(np.linspace(0.0, 1.0, SAMPLES + 1), (m, SAMPLES + 1))
+    k = kink(*cuts.at(np.arange(m), grid))
+    change = (k[:, :-1] > 0) != (k[:, 1:] > 0)
+    zeros = np.full(change.shape, np.nan)
+    rows = np.broadcast_to(np.arange(m)[:, None], change.shape)[change]
+    zeros[change] = _illinois(cuts, kink, rows, grid[:, :-1][change], grid[:, 1:][change],
+                              k[:, :-1][change], k[:, 1:][change])
+    return zeros
+
+
+def _illinois(cuts, kink, rows, lo, hi, k_lo, k_hi):
+    """The zero of kink in [lo, hi] of the cuts `rows`, where k_lo > 0 >= k_hi or the reverse: regula falsi
+    with the Illinois modification (superlinear; the bracket always holds the zero)."""
+    for _ in range(ZERO_ITERATIONS):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.where(k_hi != k_lo, (lo * k_hi - hi * k_lo) / (k_hi - k_lo), (lo + hi) / 2)
+        t = np.clip(t, np.minimum(lo, hi), np.maximum(lo, hi))
+        k_t = kink(*cuts.at(rows, t[:, None]))[:, 0]
+        same = (k_t > 0) == (k_lo > 0)
+        lo, k_lo, k_hi = np.where(same, t, lo), np.where(same, k_t, k_lo), np.where(same, k_hi / 2, k_hi)
+        hi, k_hi, k_lo = np.where(same, hi, t), np.where(same, k_hi, k_t), np.where(same, k_lo, k_lo / 2)
+    return np.where(np.abs(k_lo) <= np.abs(k_hi), lo, hi)
+
+
+def on_facets(points, integrand, kinks):
+    """∫_F integrand over each facet F (segments or triangles, points (M, n+1, 3)), kinks as integrate's.
+    Triangles by collapsed coordinates x = P0 + a e1 + b e2, b = t (1 - a): the lines of fixed a by
+    integrate, and in a by the same rule between the zeros of the kinks along the edges b = 0 and
+    a + b = 1 (where a kink's curve leaves a line through its end, the integral along it kinks in a)."""
+    m, k = points.shape[:2]
+    facet, eye = np.arange(m), np.broadcast_to(np.eye(k), (m, k, k))
+    if k == 2:
+        lengths = np.linalg.norm(points[:, 1] - points[:, 0], axis=1)
+        found = integrate(Cuts(facet, eye[:, 0], eye[:, 1], points[:, 0], points[:, 1]), integrand, kinks)
+        return found * lengths.reshape((m,) + (1,) * (found.ndim - 1))
+    edges = [Cuts(facet, eye[:, 0], eye[:, 1], points[:, 0], points[:, 1]),
+             Cuts(facet, eye[:, 2], eye[:, 1], points[:, 2], points[:, 1])]
+    rows, a, width = _pieces(_breaks(edges, kinks))  # a (P, q): the lines' positions
+    line_facet, a = np.repeat(rows, a.shape[1]), a.ravel()
+    zero = np.zeros_like(a)
+    e1, e2 = points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]
+    x0 = points[line_facet, 0] + a[:, None] * e1[line_facet]
+    lines = Cuts(line_facet, np.stack((1 - a, a, zero), axis=1), np.stack((zero, a, 1 - a), axis=1),
+                 x0, x0 + (1 - a)[:, None] * e2[line_facet])
+    along = integrate(lines, integrand, kinks)  # (L, ...)
+    weight = ((width[:, None] * WEIGHTS).ravel() * (1 - a)).reshape((-1,) + (1,) * (along.ndim - 1))
+    found = np.zeros((m,) + along.shape[1:])
+    np.add.at(found, line_facet, weight * along)
+    areas = np.linalg.norm(np.cross(e1, e2), axis=1) / 2
+    return 2 * found * areas.reshape((m,) + (1,) * (found.ndim - 1))

@@ -1,0 +1,84 @@
+"""A study's verdict as the terminal, Markdown and LaTeX show it (the verdict itself: analysis.verdict)."""
+import textwrap
+
+TERMINAL_WIDTH = 120  # the verdict block wraps its last column to fit a terminal of this width
+
+
+def format_summary(summary):
+    """The verdict block printed under the rate table."""
+    lines = []
+    if summary.outside_theory:
+        lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
+    lines += textwrap.wrap(f"verification: rate = slope of log e against log h over the last {summary.fit_levels} "
+                           f"levels; interval: the fit ± 2 standard errors, the successive rates and where they head; every class needs "
+                           f"an interval within ± {summary.tolerance:g}", TERMINAL_WIDTH)
+    lines += [f"  {note}" for note in summary.notes]
+    rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
+    for v in summary.norms:
+        observed = _rate(v.observed) + (f" (log-corrected {_rate(v.log_corrected)})" if v.log_factor else "")
+        proven = "-" if v.proven is None else f"{v.proven:g}" + (" |ln h|" if v.log_factor else "")
+        why = f"{v.reference}: {v.reason}" if v.reference and v.proven is not None else v.reason
+        rows.append((v.norm, observed, interval(v), proven, v.verdict, why))
+    lines += _aligned(rows)
+    if summary.quantities:
+        lines.append("quantities of interest (three finest levels; Celik et al. 2008, safety factor 1.25):")
+        rows = [("quantity", "finest", "order", "extrapolated", "GCI_fine", "error band")]
+        rows += [_quantity_row(q) for q in summary.quantities]
+        lines += _aligned(rows)
+    for e in summary.expectations:
+        status = "met" if e.met else "NOT MET"
+        lines.append(f"expect {e.norm} >= {e.rate:g} - {e.tolerance:g}: {status} (observed {_rate(e.observed)})")
+    return "\n".join(lines)
+
+
+def interval(v):
+    """[lo, hi] of a verdict's fitted rate, '-' without one."""
+    return "-" if v.lo is None else f"[{v.lo:.2f}, {v.hi:.2f}]"
+
+
+def markdown_lines(summary):
+    """The verdicts under a markdown rate table: one line per norm, class and interval."""
+    lines = ["", "| norm | observed | interval | proven | verdict | why |", "|---|---|---|---|---|---|"]
+    for v in summary.norms:
+        proven = "–" if v.proven is None else f"{v.proven:g}"
+        lines.append(f"| {v.norm} | {_rate(v.observed)} | {interval(v)} | {proven} | {v.verdict} | "
+                     f"{v.reason.replace('|', '/')} |")
+    return lines
+
+
+def latex_lines(summary):
+    """The verdicts under a LaTeX rate table: a tabular of norm, observed rate, interval, proven, verdict."""
+    lines = ["", r"\begin{tabular}{lrrrl}", r"\hline", r"norm & observed & interval & proven & verdict \\",
+             r"\hline"]
+    for v in summary.norms:
+        proven = "--" if v.proven is None else f"{v.proven:g}"
+        lines.append(rf"\texttt{{{v.norm.replace('_', chr(92) + '_')}}} & {_rate(v.observed)} & {interval(v)} & "
+                     rf"{proven} & {v.verdict} \\")
+    return lines + [r"\hline", r"\end{tabular}"]
+
+
+def _quantity_row(q):
+    g = q.estimate
+    if g is None:
+        return (q.quantity, "-", "-", "-", "-", q.reason)
+    finest = f"{g.value:.6e}"
+    order = f"{g.order:.2f}" + (" (oscillatory)" if g.oscillatory else "")
+    return (q.quantity, finest, order, f"{g.extrapolated:.6e}", f"{100 * g.gci:.3g}%", f"± {g.band:.2e}")
+
+
+def _aligned(rows, width=TERMINAL_WIDTH):
+    """Rows in aligned columns; a last column that would pass `width` wraps under itself."""
+    widths = [max(len(str(row[i])) for row in rows) for i in range(len(rows[0]) - 1)]
+    lead = 2 + sum(w + 2 for w in widths)
+    room = max(width - lead, 30)
+    lines = []
+    for row in rows:
+        head = "  " + "".join(str(cell).ljust(w + 2) for cell, w in zip(row, widths))
+        last = textwrap.wrap(str(row[-1]), room) or [""]
+        lines += [(head if k == 0 else " " * lead) + part for k, part in enumerate(last)]
+    return [line.rstrip() for line in lines]
+
+
+def _rate(value):
+    return "-" if value is None else f"{value:.2f}"
+
