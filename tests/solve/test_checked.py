@@ -131,6 +131,7 @@ def test_error_bound_needs_two_contracting_full_steps():
     class Fake:
         linear, cfg = "direct", type("Cfg", (), {"inexact": False, "linear_rtol": 1e-10})()
         snes = type("Snes", (), {"last_steps": None})()
+        problem = type("Problem", (), {"contact": type("Contact", (), {"alpha": 2.0})()})()
     fake = Fake()
     assert strategies.error_bound(fake) is None
     fake.snes.last_steps = (0.6, 1.0, 1.0)
@@ -138,8 +139,23 @@ def test_error_bound_needs_two_contracting_full_steps():
     fake.snes.last_steps = (1e-12, 1e-9, 2.0)
     expected = (1e-3 / (1 - 1e-3) + strategies.LINEAR_ERROR["direct"]) * 1e-12 / 2.0
     assert strategies.error_bound(fake) == pytest.approx(expected, rel=1e-15)
+    fake.problem.contact.alpha = 1.5  # no quadratic convergence: no bound
+    assert strategies.error_bound(fake) is None
+    fake.problem.contact.alpha = 2.0
     fake.cfg.inexact = True
     assert strategies.error_bound(fake) is None
+
+
+def test_alpha_1_sweep_is_checked(make_config, monkeypatch):
+    """alpha = 1 (semismooth Newton): the ε-sweep's level where the last steps' bound passed at an iterate the
+    exact correction still moved (ε = 1e-5, N = 32) is checked, and an exact Newton step reaches the root."""
+    cfg = make_config(alpha=1.0, mesh={"refinements": [32]})
+    problem = solved_problem(cfg, monkeypatch)
+    with strategies.newton_for(cfg.solver, problem) as newton:
+        assert strategies.error_bound(newton) is None
+        for eps in (1e-3, 1e-4, 1e-5):
+            outcome = strategies.descend(newton, problem, eps, cfg.solver, eps * 10)
+            assert outcome.converged and outcome.correction <= strategies.EXACT_TOL
 
 
 def test_failed_check_leaves_snes_usable(make_config, monkeypatch):
