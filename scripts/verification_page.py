@@ -104,7 +104,7 @@ def findings(cases):
                 continue
             line = (f"- `{case['cfg'].study}` {row['name']}: observed {rate(number(row['observed_rate']))} "
                     f"in {interval(row)}, proven {fraction(number(row['proven_rate']))}"
-                    f"{' (' + row['paper'] + ')' if row['paper'] else ''}: {row['reason'].replace('|', '/')}.")
+                    f"{' (' + row['paper'] + ')' if row['paper'] else ''}: {row['reason']}.")
             found[row["verdict"]][0 if base(row["name"]) in ("L2", "H1") else 1].append(line)
     lines = ["## Findings", ""]
     for verdict, title in (("exceeds", "Observed better than proven (`exceeds`)"), ("below", "Below the bound (`below`)"),
@@ -141,7 +141,7 @@ def case_section(case):
             observed += f" (log-corrected {rate(number(row['log_corrected_rate']))})"
         proven = fraction(number(row["proven_rate"])) + (" · \\|ln h\\|" if row["log_factor"] is True else "")
         lines.append(f"| {row['name']} | {observed} | {interval(row)} | {proven} | {row['verdict']} | {row['levels']} | "
-                     f"{row['paper'] or '-'} | {row['reason'].replace('|', '/')} |")
+                     f"{row['paper'] or '-'} | {row['reason'].replace('|', chr(92) + '|')} |")
     lines += [""] + quantity_lines(case) + expect_lines(case)
     return lines
 

@@ -1,7 +1,7 @@
 """A study's verdict against the paper: per norm the fitted rate, the proven rate and whether they agree;
 per scalar quantity the observed order, Richardson extrapolation and GCI; the user's `expect:` block."""
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 
 from ..config import expressions
 from . import rates
@@ -119,7 +119,7 @@ def norm_verdict(cfg, levels, norm):
     if proven.log_factor and found is not None:
         reason += log_note(found, log_corrected)
     if proven.rate is not None:
-        reason += hypotheses(proven)
+        reason += hypotheses(proven, cfg.epsilon.p)
     if verdict in (AGREES, EXCEEDS, BELOW):
         reason += caveat(cfg, levels, found)
     return NormVerdict(norm, found and found.slope, log_corrected, proven.rate, proven.log_factor,
@@ -130,19 +130,21 @@ def norm_verdict(cfg, levels, norm):
 def log_note(found, log_corrected):
     """How a bound h^p |ln h| was read: its own local slope is p - 1/|ln h|, so the interval also holds
     where the rates head if they approach p that way; the slope of e/|ln h| beside it."""
-    ln_h = -math.log(found.midpoints[-1]) if found.midpoints else math.inf
+    m = found.midpoints[-1] if found.midpoints else 1.0
+    here = f"; 1/|ln h| = {-1 / math.log(m):.2f} here" if m < 1 else ""
     return (f"; the bound carries |ln h|: the rate is the plain slope, whose interval also holds where the rates "
-            f"head if they approach p as p - b/|ln h| ({found.log_limit:.2f}; 1/|ln h| = {1 / ln_h:.2f} here); "
+            f"head if they approach p as p - b/|ln h| ({found.log_limit:.2f}{here}); "
             f"log-corrected fit (slope of e/|ln h|) {_rate(log_corrected)}")
 
 
 UNCHECKED = ("theta large enough", "h small enough", "Assumption 4.1")  # hypotheses a run cannot check
 
 
-def hypotheses(proven):
-    """The paper's hypotheses behind the proven rate that no run can check (a constant the paper does not
-    give, a stability assumption), said in the reason."""
-    found = [c for c in UNCHECKED if c in (proven.conditions or "")]
+def hypotheses(proven, p):
+    """The paper's hypotheses behind the proven rate that no run can check (a constant it does not give, a
+    stability assumption), said in the reason; eps = theta h^p with p < 1 meets "theta large enough" once h
+    is small, whatever theta."""
+    found = [c for c in UNCHECKED if c in (proven.conditions or "") and not (c.startswith("theta") and p < 1)]
     return f"; holds if {', '.join(found)} (not checked by a run)" if found else ""
 
 
@@ -172,7 +174,9 @@ def expected(cfg, norm):
     if norm.endswith("_ref") and cfg.verification.reference_epsilon == "fixed" and p != 0:
         return rates.Expected(None, reason="reference_epsilon: fixed compares each level with a problem at "
                                            "another eps: the error contains the model error")
-    return rates.expected(cfg.dimension, cfg.alpha, p, norm)
+    if cfg.problem.method not in rates.RECORDS:
+        return rates.Expected(None, reason=f"no proven rates recorded for problem.method {cfg.problem.method}")
+    return rates.expected(cfg.dimension, cfg.alpha, p, norm, rates.RECORDS[cfg.problem.method])
 
 
 def _zero(expression):
@@ -293,6 +297,27 @@ def summary_rows(summary):
         rows.append(dict(kind="expect", name=e.norm, observed_rate=e.observed, expected_rate=e.rate,
                          tolerance=e.tolerance, met=e.met))
     return rows
+
+
+def from_rows(cfg, rows):
+    """The Summary that summary_rows wrote for `cfg` (summary.csv read back): a report shows the run's verdict
+    as it was decided, not decided again."""
+    norms, quantities, expectations = [], [], []
+    for r in rows:
+        ns = tuple(int(n) for n in str(r.get("levels") or "").split())
+        if r["kind"] == "norm":
+            norms.append(NormVerdict(r["name"], r["observed_rate"], r.get("log_corrected_rate"), r["proven_rate"],
+                                     bool(r["log_factor"]), r["verdict"], r["paper"] or "", r["conditions"] or "",
+                                     ns, r["rate_lo"], r["rate_hi"], r["reason"] or ""))
+        elif r["kind"] == "quantity":
+            grid = {f.name: r[f.name] for f in fields(rates.GridConvergence)}
+            estimate = rates.GridConvergence(**grid) if r["value"] is not None else None
+            quantities.append(QuantityEstimate(r["name"], ns, estimate, r["reason"] or ""))
+        else:
+            expectations.append(Expectation(r["name"], r["expected_rate"], r["tolerance"], r["observed_rate"],
+                                            r["met"]))
+    return Summary(tuple(norms), tuple(quantities), tuple(expectations), cfg.verification.fit_levels,
+                   cfg.verification.tolerance, notes(cfg), cfg.outside_theory)
 
 
 def _levels(ns):

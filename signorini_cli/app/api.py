@@ -8,7 +8,8 @@ from mpi4py import MPI
 
 from .. import config, studies
 from ..config import loader, reading
-from . import guard
+from ..studies import rate_map
+from . import guard, maps
 
 
 Study = studies.Study  # a finished study: config, result, tables (main table: `rows`) and verdict (`summary`)
@@ -32,10 +33,12 @@ def load(source, **overrides):
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
     """Run cfg's study on `comm` and return it as a Study (the runner of `signorini run`). on_level(level, u_h),
-    if given, is called after each solve of a refinement or signorini study (total_error: of its sub-studies)
-    with the Level and its solution u_h (a dolfinx Function; the mesh is u_h.function_space.mesh), before the
-    study lets u_h go. write=True keeps rates.csv, summary.csv, study.h5 and status.txt in cfg.output_dir
-    current after every solve, as `signorini run` does (its tables and figures are the command's)."""
+    if given, is called after each solve of a refinement or signorini study (total_error: of its sub-studies;
+    a map: of its points) with the Level and its solution u_h (a dolfinx Function; the mesh is
+    u_h.function_space.mesh), before the study lets u_h go. write=True keeps rates.csv, summary.csv, study.h5
+    and status.txt in cfg.output_dir current after every solve, as `signorini run` does (its tables and figures
+    are the command's), holding the folder's lock as it does; a map is written as `signorini run --force`
+    writes it."""
     def each(study):
         if write:
             watch.level_done(study)
@@ -43,7 +46,26 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, write=False):
         if on_level is not None and getattr(last, "solution", None) is not None:
             on_level(last, last.solution)
 
+    if studies.of(cfg.study_type).POINTS:
+        return _run_map(cfg, on_level, comm, write)
     if not write:
         return studies.run(cfg, each if on_level else None, comm)
-    with guard.Watch(cfg, (), comm) as watch:
+    with guard.FolderLock(cfg.output_dir, comm), guard.Watch(cfg, (), comm) as watch:
         return studies.run(cfg, each, comm)
+
+
+def _run_map(cfg, on_level, comm, write):
+    """A map's Study: the Points this group of ranks ran, and map.csv's rows of every point as its table."""
+    def each(point):
+        last = point.levels[-1:]  # also called as a point starts
+        if on_level is not None and last and getattr(last[0], "solution", None) is not None:
+            on_level(last[0], last[0].solution)
+
+    if write:
+        ran = maps.run(cfg, force=True, quiet=True, comm=comm, on_level=each)
+    else:
+        ran = studies.run_study(cfg, on_level=each, comm=comm)
+    mine = [(p.index, rate_map.row(p.cfg, p.values, p.levels, maps.status_of(p), cfg.map.varied))
+            for p in ran if p.comm.rank == 0]
+    rows = sorted((pair for part in comm.allgather(mine) for pair in part), key=lambda pair: pair[0])
+    return studies.Study(cfg, ran, {"map": [row for _, row in rows]})

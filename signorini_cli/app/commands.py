@@ -1,6 +1,5 @@
 """The commands: run (a study of any type), check (resolved config), init (the commented template), list
 (shipped configs), report and compare; their exit statuses and the one-line error of bad input."""
-import contextlib
 import dataclasses
 import hashlib
 import logging
@@ -12,14 +11,13 @@ import yaml
 from mpi4py import MPI
 
 from .. import config, studies
+from ..analysis import rates, verdict
 from ..config import ConfigError
-from ..meshing import geometries
-from ..problems import contact
-from ..record import results, resume
+from ..record import csvfile, results, resume
 from ..report import plots, progress, tables, verdicts
-from ..solve import preflight, solver
+from ..solve import solver
 from ..system import errors
-from . import guard, maps, resources
+from . import checks, guard, maps
 
 logger = logging.getLogger(__name__)
 
@@ -105,17 +103,32 @@ def report_study(args):
                   "per_norm": args.per_norm}
         folder = Path(args.output or study.folder)
         beside = args.columns and folder.resolve() == study.folder.resolve()
-        written = []
+        written, summary = [], recorded_verdict(study, cfg)
         if MPI.COMM_WORLD.rank == 0:  # other columns beside the study's own files, never over them
             written = tables.write(study, cfg, digits, plots=not args.no_plots, folder=folder, columns=columns,
-                                   figure=figure, suffix=columns_suffix(args.columns) if beside else "")
+                                   figure=figure, suffix=columns_suffix(args.columns) if beside else "",
+                                   summary=summary)
             table = tables.terminal(study, cfg) if columns is None else tables.format_table(study.rows, cfg, columns)
     except (ConfigError, OSError) as err:
         return fail(args.path, err)
     if MPI.COMM_WORLD.rank == 0:
-        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
-              tables.wrote((p.relative_to(folder) for p in written), folder)])
+        shown = [verdicts.format_summary(summary)] if summary is not None and columns is None else []
+        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table] + shown
+             + [tables.wrote((p.relative_to(folder) for p in written), folder)])
     return EXIT_OK
+
+
+def recorded_verdict(study, cfg):
+    """The verdict the run recorded (its summary.csv), as run printed it; None without one (a type without a
+    verdict, a study read from rates.csv alone, a summary.csv of an older format)."""
+    path = study.folder / "summary.csv"
+    if cfg is None or not path.exists():
+        return None
+    try:
+        return verdict.from_rows(cfg, csvfile.read(path))
+    except (csvfile.Damaged, KeyError):
+        logger.warning("%s: no verdict read (damaged, or written by an older version)", path)
+        return None
 
 
 def columns_suffix(columns):
@@ -127,9 +140,14 @@ def columns_suffix(columns):
 
 
 def report_map(args):
-    """A map's outputs redrawn from its folder."""
+    """A map's outputs redrawn from its folder (into --output instead when given); the options of a study's
+    tables are refused, a map has none of them."""
     try:
-        text = maps.report(args.path, draw=not args.no_plots) if MPI.COMM_WORLD.rank == 0 else None
+        given = [flag for flag, value in (("--digits", args.digits), ("--columns", args.columns),
+                                          ("--width", args.width), ("--per-norm", args.per_norm)) if value]
+        if given:
+            raise ConfigError(given[0], "applies to a study's tables and figures; a map's report has no such option")
+        text = maps.report(args.path, not args.no_plots, args.output) if MPI.COMM_WORLD.rank == 0 else None
     except (ConfigError, yaml.YAMLError, OSError) as err:
         return fail(args.path, err)
     if text:
@@ -173,14 +191,23 @@ def compare(args):
         folder = Path(args.output) if args.output else found[0].folder.parent / "compare"
         rows = {f"{label} {part}".strip(): part_rows for label, study in zip(labels, found)
                 for part, part_rows in compared(study).items()}
+        fit_levels = {f"{label} {part}".strip(): _fit_levels(study) for label, study in zip(labels, found)
+                      for part in compared(study)}  # each study fitted as its own verdict fits it
         written = []
         if MPI.COMM_WORLD.rank == 0:
-            written = tables.write_comparison(rows, folder) + plots.write_comparison(rows, folder)
+            written = tables.write_comparison(rows, folder, fit_levels) + plots.write_comparison(rows, folder)
     except (ConfigError, OSError) as err:
         return fail("compare", err)
     if MPI.COMM_WORLD.rank == 0:
-        emit([tables.summary_table(rows), tables.wrote((p.name for p in written), folder)])
+        emit([tables.summary_table(rows, fit_levels), tables.wrote((p.name for p in written), folder)])
     return EXIT_OK
+
+
+def _fit_levels(study):
+    """The levels a study's rates are fitted over: its config's verification.fit_levels (the default
+    without a config)."""
+    cfg = study_config(study)
+    return cfg.verification.fit_levels if cfg is not None else rates.FIT_LEVELS
 
 
 def compared(study):
@@ -216,7 +243,7 @@ def _run_command(args):
         cfg = _load(args)
         if studies.of(cfg.study_type).POINTS:
             return _run_map(cfg, args)
-        if args.points:
+        if args.points is not None:
             raise ConfigError("--points", f"chooses points of a map; study_type is {cfg.study_type}")
         lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD)  # writable, and no other run writes it
     except (ConfigError, yaml.YAMLError, OSError) as err:
@@ -226,25 +253,28 @@ def _run_command(args):
             _check_output(cfg, args.force or args.resume)
             done = _prepare(cfg, args)
             if args.force and not args.resume and MPI.COMM_WORLD.rank == 0:
-                start_over(cfg.output_dir)  # under the lock (no other run writes there), once nothing refuses
+                results.start_over(cfg.output_dir)  # under the lock (no other run writes there), once nothing refuses
         except (ConfigError, yaml.YAMLError, OSError) as err:
             return fail(args.config, err)
+        status = results.read_status(cfg.output_dir) if MPI.COMM_WORLD.rank == 0 else ""
         try:
             return run(cfg, quiet=args.quiet, verbose=args.verbose, done=done)
         except ConfigError as err:  # refused before solving: a problem not posed right (problems/posed.py), or an
             # option PETSc rejects only in a real solve (on every rank)
+            if MPI.COMM_WORLD.rank == 0:
+                results.restore(cfg, done, status, MPI.COMM_WORLD.size)  # bad input leaves the folder as it found it
             return fail(args.config, err)
 
 
 def _run_map(cfg, args):
-    """A map: on map.jobs local workers (under mpirun); one run per map folder, while a chunk (--points)
-    locks its points one by one instead, so that chunks of one map may run side by side."""
+    """A map: on map.jobs local workers (under mpirun); which runs may write one map folder at once:
+    maps.run."""
     if cfg.map.jobs > 1 and MPI.COMM_WORLD.size == 1:
         maps.relaunch(cfg.map.jobs)
     try:
-        lock = guard.FolderLock(cfg.output_dir, MPI.COMM_WORLD) if not args.points else contextlib.nullcontext()
-        with lock:
-            return maps.run(cfg, args.points, force=args.force, resume_map=args.resume, quiet=args.quiet)
+        ran = maps.run(cfg, args.points, force=args.force, resume_map=args.resume, quiet=args.quiet,
+                       memory=not args.ignore_memory_check)
+        return maps.exit_status(ran, MPI.COMM_WORLD)
     except (ConfigError, OSError) as err:
         return fail(args.config, err)
 
@@ -332,28 +362,8 @@ def init(args):
 def _prepare(cfg, args):
     """The finished levels to continue from (--resume), once the finest level fits in memory and PETSc took
     the user's options on a small system."""
-    if not args.ignore_memory_check:
-        resources.check_memory(cfg, MPI.COMM_WORLD)
-    preflight.check_options(cfg.solver, cfg.dimension, MPI.COMM_WORLD)
-    contact.check_alpha(cfg)
-    if cfg.mesh.kind == "gmsh":  # what gmsh cannot mesh is bad input, found before any level runs
-        list(geometries.mesh_levels(cfg, MPI.COMM_WORLD))
+    checks.before_solving(cfg, MPI.COMM_WORLD, memory=not args.ignore_memory_check)
     return resume.finished_levels(cfg, MPI.COMM_WORLD) if args.resume else []
-
-
-# what a run writes into its study folder (record.results, report.tables and plots, studies.fields)
-RESULT_FILES = ("*.csv", "*.h5", "*.md", "*.tex", "*.png", "*.pdf", "status.txt", "fields/*.xdmf", "fields/*.h5")
-
-
-def start_over(folder):
-    """Remove a study's old results (--force): the new run's tables and figures never sit beside the old
-    ones, also when it is interrupted. Only the files a run writes, in case the folder holds others."""
-    for pattern in RESULT_FILES:
-        for path in Path(folder).glob(pattern):
-            path.unlink()
-    fields = Path(folder) / "fields"
-    if fields.is_dir() and not any(fields.iterdir()):
-        fields.rmdir()
 
 
 def _check_output(cfg, force):

@@ -118,10 +118,11 @@ def supervise(body):
         try:
             return body()
         except Interrupted as sig:
-            settle(sig, comm)
-            if comm.rank == 0:  # mpirun passes Ctrl-C on to every rank: one line, not one per rank
-                print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
-            _abort_if_parallel(comm, sig.exit_status)
+            with deferred(drop=True):  # a second signal (mpirun's SIGTERM to the ranks as one aborts) adds nothing
+                settle(sig, comm)
+                if comm.rank == 0:  # mpirun passes Ctrl-C on to every rank: one line, not one per rank
+                    print(f"signorini: interrupted by {sig}{sig.note}", file=sys.stderr)
+                _abort_if_parallel(comm, sig.exit_status)
             return sig.exit_status
         except WriteFailed as err:  # raised on the writer (rank 0; any rank for fields): it speaks, ends the others
             errors.print_error("", f"{err}{err.note}")
@@ -232,13 +233,13 @@ class Watch:
             failed = WriteFailed(self.cfg.output_dir, err)
             self.__exit__(WriteFailed, failed, tb)
             raise failed from err
-        settle(err, self.comm)
-        state = self.ending(err)
-        if isinstance(err, Interrupted):
-            err.note = self.note(state)
-        elif isinstance(err, WriteFailed):
-            err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
-        with deferred(drop=True):
+        with deferred(drop=True):  # the study is ending: a second signal adds nothing
+            settle(err, self.comm)
+            state = self.ending(err)
+            if isinstance(err, Interrupted):
+                err.note = self.note(state)
+            elif isinstance(err, WriteFailed):
+                err.note = f"; {state.split(':')[0]}:{self.note(state).split(':', 1)[1]}"
             self.record(state)
         return False
 
@@ -293,33 +294,37 @@ def writing(folder):
 # --- one run per study folder --------------------------------------------------------------------
 
 class FolderLock:
-    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it. The kernel
-    drops it when the process ends, however it ends: a killed run leaves no stale lock. Folders made
-    for it are removed again on release when they stayed empty (a refused run leaves nothing)."""
+    """An exclusive flock on the study folder itself, held by rank 0 while a run writes it (shared=True: a
+    shared one, which other shared holders may hold too, as a map's chunks do). The kernel drops it when the
+    process ends, however it ends: a killed run leaves no stale lock. Folders made for it are removed again
+    on release when they stayed empty (a refused run leaves nothing). `busy` ends the refusal's line."""
 
-    def __init__(self, folder, comm):
+    def __init__(self, folder, comm, shared=False, busy="; wait for it to end or choose another output folder"):
         self.folder, self.fd, self.made = Path(folder), None, []
-        refusal = self._acquire() if comm.rank == 0 else None
+        refusal = self._acquire(fcntl.LOCK_SH if shared else fcntl.LOCK_EX, busy) if comm.rank == 0 else None
         refusal = comm.bcast(refusal, root=0)
         if refusal is not None:
             raise ConfigError("output.dir", refusal)
 
-    def _acquire(self):
+    def _acquire(self, mode, busy):
         """None once the lock is held, else why not."""
         problem = files.unwritable(self.folder)  # not a folder, read-only, ...: before anything is made
         if problem is not None:
             return problem
         try:
-            self.made = [p for p in (*reversed(self.folder.parents), self.folder) if not p.exists()]
-            self.folder.mkdir(parents=True, exist_ok=True)
+            for path in (*reversed(self.folder.parents), self.folder):
+                try:  # only the folders this run makes itself: another run may make the same ones meanwhile
+                    path.mkdir()
+                    self.made.append(path)
+                except FileExistsError:
+                    pass
             self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
-            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(self.fd, mode | fcntl.LOCK_NB)
             return None
         except OSError as err:
             self.release()
             if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
-                return f"{self.folder} is being written by another signorini run; wait for it to end or " \
-                       "choose another output folder"
+                return f"{self.folder} is being written by another signorini run{busy}"
             return f"{err.filename or self.folder}: cannot write there: {err.strerror}"
 
     def release(self):
@@ -339,6 +344,34 @@ class FolderLock:
     def __exit__(self, *exc):
         self.release()
         return False
+
+
+def try_lock(folder):
+    """An exclusive flock on `folder` (made when missing) for this process: its descriptor (closing it
+    drops the lock), or None when another run holds it."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as err:
+        os.close(fd)
+        if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+            return None
+        raise
+    return fd
+
+
+@contextmanager
+def held(folder):
+    """Within: an exclusive flock on `folder` (made when missing), waited for: what reads and rewrites
+    files that other runs write too does so one run at a time."""
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 # --- a closed stdout -----------------------------------------------------------------------------
@@ -419,19 +452,27 @@ def compiling_whole():
     """Within: a signal waits while FFCx compiles a form (dolfinx.jit.ffcx_jit), and interrupts the run
     right after. FFCx claims a form's entry in its cache (~/.cache/fenics) with an empty .c file and cleans
     up only after an Exception: a run interrupted while compiling left the claim, and every later run of
-    that form waited 10 s for it and failed. A compilation takes seconds."""
+    that form waited 10 s for it and failed. A compilation takes seconds. What the C compiler prints (gcc's
+    unused-variable warnings on FFCx's code) is kept off stderr unless the compilation fails."""
     from dolfinx import jit
     original = jit.ffcx_jit
 
     @functools.wraps(original)
     def ffcx_jit(*args, **kwargs):
         _signals.holding += 1
+        failure = ""
         try:
-            compiled = original(*args, **kwargs)
+            with files.stderr_in_memory() as printed:  # the C compiler's warnings (unused variables) are noise
+                try:
+                    compiled = original(*args, **kwargs)
+                except BaseException:
+                    failure = printed()
+                    raise
         except Exception:  # Ctrl-C reaches the compiler too: then the signal is the cause
             signum = _release()
             if signum is not None:
                 raise Interrupted(signum) from None
+            sys.stderr.write(failure)  # a failed compilation shows what the compiler said
             raise
         except BaseException:
             _release()

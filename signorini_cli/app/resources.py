@@ -7,7 +7,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from ..config import ConfigError, geometry_files
+from ..config import ConfigError, geometry_files, units
 from ..meshing import geometries
 
 # Peak memory (ru_maxrss) of one serial level on this machine, minus the 94 MB after the imports:
@@ -27,6 +27,8 @@ GMSH_DOFS_PER_MEASURE = {2: 1.15, 3: 0.85}
 # grid a vertex dof couples with 19 dofs and an edge dof with 9, (19 + 3·9)/4 = 11.5 nonzeros per row. The
 # bytes per dof and per nonzero are P1's fit above, not measured for P2.
 P2_DOFS_PER_P1_DOF, P2_ROW_NONZEROS = 4, 11.5
+# A vector problem (elasticity) has d dofs per node, each row coupling with d times the scalar neighbours:
+# d times the dofs, d² times the nonzeros of the scalar space of the same element.
 
 
 def level_size(mesh_cfg, n):
@@ -46,18 +48,19 @@ def needed_bytes(dofs, nonzeros, ranks):
     return ranks * BYTES_PER_RANK + dofs * BYTES_PER_DOF + nonzeros * BYTES_PER_NONZERO
 
 
-def check_memory(cfg, comm):
+def check_memory(cfg, comm, copies=1):
     """ConfigError (naming the key of the levels) on every rank when the finest level, with its reference
-    solution for a data-only scene, would need more memory than the nodes of `comm` have available.
-    --ignore-memory-check skips the check."""
+    solution for a data-only scene, would need more memory than the nodes of `comm` have available; `copies`
+    groups of its ranks may each hold such a level at once (a map's points). --ignore-memory-check skips it."""
     peak = peak_meshes(cfg, comm)
     if peak is None:
         return
     dofs, nonzeros = sum(d for _, d, _ in peak), sum(z for _, _, z in peak)
-    need, have = needed_bytes(dofs, nonzeros, comm.size), available_on_nodes(comm)
+    need, have = needed_bytes(copies * dofs, copies * nonzeros, comm.size), available_on_nodes(comm)
     if need > have:
         what = "the finest level" if len(peak) == 1 else "the finest level with its reference solution"
         meshes = " and ".join(label for label, _, _ in peak)
+        what += f", {copies} at once (one per group of ranks)" if copies > 1 else ""
         raise ConfigError(f"mesh.{cfg.mesh.level_key}",
                           f"{what} ({meshes}: {dofs:,} dofs, {nonzeros:,} Jacobian nonzeros) needs about "
                           f"{_gb(need)} of memory, more than the {_gb(have)} available; use --ignore-memory-check "
@@ -69,10 +72,13 @@ def peak_meshes(cfg, comm):
     scene the reference mesh, verification.reference_refinements uniform refinements finer; None when
     a size cannot be told before meshing (a geometry gmsh cannot read: reported when it meshes)."""
     peak = p1_peak_meshes(cfg, comm)
-    if peak is None or cfg.element.degree == 1:
-        return peak
-    return [(label, P2_DOFS_PER_P1_DOF * dofs, round(P2_ROW_NONZEROS * P2_DOFS_PER_P1_DOF * dofs))
-            for label, dofs, _ in peak]
+    if peak is None:
+        return None
+    if cfg.element.degree == 2:
+        peak = [(label, P2_DOFS_PER_P1_DOF * dofs, round(P2_ROW_NONZEROS * P2_DOFS_PER_P1_DOF * dofs))
+                for label, dofs, _ in peak]
+    d = cfg.mesh.dimension if units.PDES[cfg.problem.pde].VECTOR else 1
+    return [(label, d * dofs, d * d * nonzeros) for label, dofs, nonzeros in peak]
 
 
 def p1_peak_meshes(cfg, comm):

@@ -1,6 +1,5 @@
 """Whitelisted arithmetic expressions from configs, translated to UFL or numpy without eval."""
 import ast
-import copy
 import math
 from dataclasses import dataclass
 
@@ -11,6 +10,9 @@ CONSTANTS = {"pi": math.pi, "e": math.e}
 MAX_EXPONENT = 100  # a constant power above this is a typo or an attack, not a solution
 MAX_LENGTH = 2000
 MAX_DEPTH = 60
+# nodes of an expression with its definitions inserted: a literal expression of MAX_LENGTH characters has
+# fewer, and definitions may not get around the limit by doubling (a: "x*x", b: "a*a", ...)
+MAX_NODES = MAX_LENGTH
 
 _BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 _UNARY = {ast.UAdd: "+", ast.USub: "-"}
@@ -33,12 +35,22 @@ class ExpressionError(ValueError):
     """An expression outside the grammar; the message says what is wrong."""
 
 
+class DefinitionError(ExpressionError):
+    """A definition's text outside the grammar: `name` says which definition."""
+
+    def __init__(self, name, message):
+        self.name, self.message = name, message
+        super().__init__(f"{name}: {message}")
+
+
 @dataclass(frozen=True)
 class Expression:
-    """A parsed, validated expression: its text, its AST, and the variables it uses."""
+    """A parsed, validated expression: its text, its AST (the trees of the definitions it uses are shared,
+    not copied), the variables it uses, and its value when it is a constant."""
     text: str
     tree: ast.AST
     names: frozenset
+    value: float = None
 
     def __call__(self, variables, functions):
         """Evaluate with `variables` (name -> value) and `functions` (name -> callable)."""
@@ -53,6 +65,10 @@ def parse(text, variables, defined=None):
     if isinstance(text, float) and not math.isfinite(text):
         raise ExpressionError(f"must be finite, got {text}")
     text = str(text)
+    if not text.isascii():  # Python would read a name such as 𝑥 (mathematical italic) as x
+        character = next(c for c in text if not c.isascii())
+        raise ExpressionError(f"non-ASCII character {character!r} (U+{ord(character):04X}): names, numbers and "
+                              "operators are ASCII")
     if len(text) > MAX_LENGTH:
         raise ExpressionError(f"longer than {MAX_LENGTH} characters")
     source = text.strip()
@@ -64,11 +80,12 @@ def parse(text, variables, defined=None):
     except (ValueError, RecursionError) as err:  # NUL bytes; nesting beyond the parser's stack
         raise ExpressionError(f"cannot parse {_clip(text)!r}: {err}") from None
     defined = defined or {}
-    grammar = _Grammar(set(variables) | set(defined), source)
-    grammar.check(tree, depth=0)
+    grammar = _Grammar(set(variables), source, defined)
+    value = grammar.check(tree, depth=0)
     tree = _Inline(defined).visit(tree)
+    _check_extent(tree)
     used = set().union(*(defined[n].names if n in defined else {n} for n in grammar.names))
-    return Expression(text, tree, frozenset(used))
+    return Expression(text, tree, frozenset(used), value)
 
 
 def definitions(texts, variables):
@@ -78,20 +95,49 @@ def definitions(texts, variables):
     for name, text in texts.items():
         if not isinstance(name, str) or not name.isidentifier() or name in FUNCTIONS or name in CONSTANTS:
             raise ExpressionError(f"{name!r}: a definition's name must be a new identifier")
+        if not name.isascii():  # Python reads 𝑥 in an expression as x: the definition would never be used
+            raise ExpressionError(f"{name!r}: a definition's name must be ASCII")
         if name in variables:
             raise ExpressionError(f"{name!r}: a definition cannot redefine the variable {name}")
-        defined[name] = parse(text, variables, defined)
+        try:
+            defined[name] = parse(text, variables, defined)
+        except ExpressionError as err:
+            raise DefinitionError(name, str(err)) from None
     return defined
 
 
 class _Inline(ast.NodeTransformer):
-    """Replaces each defined name by (a copy of) its definition's tree."""
+    """Replaces each defined name by its definition's tree, shared (never copied, never changed)."""
 
     def __init__(self, defined):
         self.defined = defined
 
     def visit_Name(self, node):
-        return copy.deepcopy(self.defined[node.id].tree) if node.id in self.defined else node
+        return self.defined[node.id].tree if node.id in self.defined else node
+
+
+def _check_extent(tree):
+    """Refuse a tree deeper than MAX_DEPTH or larger than MAX_NODES once its shared definitions are counted
+    at every use; each node is visited once, so a million-fold expansion is counted, not built."""
+    extent = {}  # id(node) -> (depth, nodes)
+    stack = [(tree, False)]
+    while stack:  # depth-first, children before their parent, without recursion
+        node, expanded = stack.pop()
+        if id(node) in extent:
+            continue
+        children = [child for child in ast.iter_child_nodes(node) if isinstance(child, ast.expr)]  # not ops
+        if not expanded:
+            stack.append((node, True))
+            stack.extend((child, False) for child in children if id(child) not in extent)
+            continue
+        below = [extent[id(child)] for child in children]
+        extent[id(node)] = (1 + max((d for d, _ in below), default=0), 1 + sum(n for _, n in below))
+    depth, nodes = extent[id(tree)]
+    if depth > MAX_DEPTH + 1:
+        raise ExpressionError(f"nested too deeply with its definitions inserted (depth {depth}, at most "
+                              f"{MAX_DEPTH + 1})")
+    if nodes > MAX_NODES:
+        raise ExpressionError(f"too large with its definitions inserted ({nodes} terms, at most {MAX_NODES})")
 
 
 def _statement(source):
@@ -118,8 +164,8 @@ def _clip(text, width=40):
 class _Grammar:
     """The checker: walks the AST, collects the names used, folds and checks constant parts."""
 
-    def __init__(self, variables, source):
-        self.variables, self.source, self.names = variables, source, set()
+    def __init__(self, variables, source, defined):
+        self.variables, self.source, self.defined, self.names = variables, source, defined, set()
 
     def check(self, node, depth):
         """Check `node` against the grammar; return its value when it is constant, else None."""
@@ -143,10 +189,14 @@ class _Grammar:
                               f"names and {', '.join(FUNCTIONS)})")
 
     def name(self, node):
-        if node.id not in self.variables and node.id not in CONSTANTS:
-            allowed = ", ".join(sorted(self.variables) + sorted(CONSTANTS))
+        """A variable (None), a constant, or a definition: its value where it is constant, so that the
+        limits on constant parts hold through definitions (a: "1000" in exp(a), p: "50+51" in x**p)."""
+        if node.id not in self.variables and node.id not in CONSTANTS and node.id not in self.defined:
+            allowed = ", ".join(sorted(self.variables) + sorted(self.defined) + sorted(CONSTANTS))
             raise ExpressionError(f"unknown name {_clip(node.id)!r} (allowed: {allowed})")
         self.names.add(node.id)
+        if node.id in self.defined:
+            return self.defined[node.id].value
         return CONSTANTS[node.id] if node.id not in self.variables else None
 
     def fold_binary(self, node, left, right):

@@ -3,37 +3,18 @@ combination, and every explicit point, is one refinement study, validated here b
 import copy
 import dataclasses
 import itertools
-from dataclasses import dataclass, field
+import math
 from pathlib import Path
 
 from . import reading, rendering, settings
 from . import validators as check
-from .schema import ConfigError
+from .schema import ConfigError, Map, default, keys_of
 
 BLOCK = "map"  # the key of the map's own block
-KEYS = ("grid", "points", "jobs", "ranks_per_point")
+# points of one map at most: each is a refinement study, and checking one takes about a millisecond
+MAX_POINTS = 1000
 # what names, places or makes the map itself: a point takes these from the map
 FIXED = ("study", "study_type", BLOCK, "output", "description")
-
-
-@dataclass(frozen=True)
-class Map:
-    """The grid (dotted key -> values), explicit points, local workers and MPI ranks per point; `studies`
-    are the points' validated configs, in point order."""
-    grid: dict
-    points: tuple
-    jobs: int
-    ranks_per_point: int
-    studies: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
-    values: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
-
-    @property
-    def varied(self):
-        """The varied keys, grid first, in the order given: the columns of map.csv."""
-        keys = list(self.grid)
-        for point in self.points:
-            keys += [key for key in point if key not in keys]
-        return tuple(keys)
 
 
 def parse(raw, base, folder):
@@ -42,18 +23,22 @@ def parse(raw, base, folder):
     block = raw.get(BLOCK)
     if block is None:
         raise ConfigError(BLOCK, "missing: study_type map needs a map block (map.grid)")
-    check.keys(block, BLOCK, optional=KEYS)
+    check.keys(block, BLOCK, optional=keys_of(Map))
     grid = _grid(block.get("grid", {}), "map.grid")
-    listed = _list(block.get("points", []), "map.points")
+    listed = _list(block.get("points", list(default(Map, "points"))), "map.points")
     points = tuple(_point(p, f"map.points[{i}]") for i, p in enumerate(listed))
     if not grid and not points:
         raise ConfigError("map.grid", "give at least one dotted key with its list of values")
+    count = math.prod(len(values) for values in grid.values()) * bool(grid) + len(points)
+    if count > MAX_POINTS:
+        raise ConfigError("map.grid", f"{count} points, more than a map's {MAX_POINTS}: split it into maps "
+                                      "of fewer values")
     values = tuple(dict(zip(grid, combo)) for combo in itertools.product(*grid.values())) + points
     wheres = ["map.grid.{key}"] * (len(values) - len(points)) + [f"map.points[{i}].{{key}}" for i in range(len(points))]
     studies = tuple(point_config(raw, k, point, base.output_dir / "points", folder, where)
                     for k, (point, where) in enumerate(zip(values, wheres)))
-    return Map(grid, points, check.integer(block.get("jobs", 1), "map.jobs", low=1),
-               check.integer(block.get("ranks_per_point", 1), "map.ranks_per_point", low=1), studies, values)
+    s = check.Section(block, BLOCK, Map)
+    return Map(grid, points, s.integer("jobs", low=1), s.integer("ranks_per_point", low=1), studies, values)
 
 
 def _grid(raw, path):
@@ -63,6 +48,7 @@ def _grid(raw, path):
     grid = {}
     for key, values in _dotted(raw):
         _check_key(key, f"{path}.{key}")
+        _check_once(key, grid, path)
         grid[key] = _list(values, f"{path}.{key}")
         if not grid[key]:
             raise ConfigError(f"{path}.{key}", "must be a non-empty list of values")
@@ -83,7 +69,20 @@ def _point(raw, path):
         raise ConfigError(path, f"must be a mapping of dotted config keys to values, got {check.show(raw)}")
     for key in raw:
         _check_key(key, f"{path}.{key}")
+    keys = [key for key, _ in _dotted(raw)]
+    for i, key in enumerate(keys):
+        _check_once(key, keys[:i], path)
     return dict(raw)
+
+
+def _check_once(key, given, path):
+    """A key the map sets once: `epsilon.theta` and `epsilon: {theta: ...}` (or `epsilon: ...`) both
+    set epsilon.theta, and one would silently replace the other."""
+    for other in given:
+        if other == key or other.startswith(f"{key}.") or key.startswith(f"{other}."):
+            twice = "is given twice" if other == key else f"and {other} are both given"
+            raise ConfigError(f"{path}.{key}", f"{key} {twice}: a dotted key and a nested mapping set the same "
+                                               "key, one would replace the other")
 
 
 def _list(raw, path):
@@ -127,9 +126,9 @@ def chunk(text, count):
     """The point indices of `--points 0-49,60` (inclusive ranges), checked against the map's count."""
     chosen = set()
     for part in str(text).split(","):
-        first, _, last = part.strip().partition("-")
+        first, dash, last = part.strip().partition("-")
         try:
-            lo, hi = int(first), int(last or first)
+            lo, hi = int(first), int(last if dash else first)  # "2-" and "" name no point
         except ValueError:
             raise ConfigError("--points", f"expected ranges such as 0-49,60, got {text!r}") from None
         if not 0 <= lo <= hi < count:

@@ -34,7 +34,17 @@ COLUMNS = {
     "epsilon": Name("ε", r"$\varepsilon$", "the penalty parameter"),
     "newton_its": Name("its", "its", "Newton iterations"),
     "time_s": Name("time", "time", "wall time of the level in seconds"),
+    # a Hertz contact (hertz: {radius}): measured, Hertz's closed form, relative error
+    "half_width": Name("a_h", "$a_h$", "the contact half-width"),
+    "half_width_hertz": Name("a(F_h)", "$a(F_h)$", "Hertz's half-width under the force $F_h$"),
+    "half_width_err": Name("a err", r"$|a_h-a|/a$", "the half-width's relative error"),
+    "peak_pressure": Name("p_h", "$p_h$", "the peak contact pressure"),
+    "peak_pressure_hertz": Name("p0(F_h)", "$p_0(F_h)$", "Hertz's peak pressure under the force $F_h$"),
+    "peak_pressure_err": Name("p err", r"$|p_h-p_0|/p_0$", "the peak pressure's relative error"),
+    "force_hertz": Name("F(a_h)", "$F(a_h)$", "Hertz's force for the half-width $a_h$"),
+    "force_err": Name("F err", r"$|F_h-F|/F$", "the force's relative error"),
 }
+HERTZ = ("contact_force",) + tuple(c for c in COLUMNS if c.startswith(("half_width", "peak_pressure", "force_")))
 
 
 def name(column):
@@ -74,6 +84,7 @@ MEASURES = (
     Measure("contact_measure", ("contact_measure",), "quantity", True, BOTH),
     Measure("contact_force", ("contact_force",), "quantity", True, ("data",)),
     Measure("energy", ("energy",), "quantity", False, ("data",)),
+    Measure("hertz", HERTZ[1:], "quantity", True, ()),  # with a hertz block: against Hertz's closed forms
     Measure("diff", ("diff_L2", "diff_H1"), "error", False, ("data",)),  # successive differences
 )
 MEASURE_KEYS = tuple(m.key for m in MEASURES)

@@ -7,9 +7,11 @@ from . import validators as check
 from .schema import COORDINATES, ConfigError, Problem, default
 
 NAME = "poisson"
+DOC = "the scalar model"  # how the reference and `signorini init` describe it beside its name
 KEYS = ("exact", "f", "g", "exact_solves", "define")  # the problem keys it takes (besides pde and method)
 SECTION = None  # no section of its own
 DEGREES = (1, 2)  # the element degrees it has
+VECTOR = False  # u is scalar
 VI = True  # it has a Signorini variational inequality (paper eq. (8)), which the ε → 0 studies solve
 
 
@@ -27,7 +29,7 @@ EXACT_SOLVES = {"compliance": Solves(eps=True, signorini=False), "signorini": So
 def problem(raw, path, dim):
     """exact, or f (and g), each an expression in x, y (z), eps and the names of define."""
     coords = COORDINATES[dim]
-    defined = _define(raw.get("define", {}), f"{path}.define", coords + ("eps",))
+    defined = define(raw.get("define", {}), f"{path}.define", coords + ("eps",))
     exact, f, g = (check.expression(raw[k], f"{path}.{k}", coords + ("eps",), defined) if k in raw else None
                    for k in ("exact", "f", "g"))
     if exact is None and f is None:
@@ -37,12 +39,15 @@ def problem(raw, path, dim):
     return Problem(exact, f, g, _exact_solves(raw, path, exact), tuple(defined.items()))
 
 
-def _define(raw, path, variables):
-    """problem.define: {name: expression}, each checked like problem.exact."""
+def define(raw, path, variables):
+    """problem.define: {name: expression}, each checked like problem.exact (errors in a definition's
+    text name it: problem.define.r)."""
     if not isinstance(raw, dict):
         raise ConfigError(path, "must be a mapping of name to expression, e.g. {r: \"sqrt(x**2 + y**2)\"}")
     try:
         return expressions.definitions(raw, variables)
+    except expressions.DefinitionError as err:
+        raise ConfigError(f"{path}.{err.name}", err.message) from None
     except expressions.ExpressionError as err:
         raise ConfigError(path, str(err)) from None
 
@@ -60,7 +65,11 @@ def _exact_solves(raw, path, exact):
 
 
 def check_config(cfg, raw):
-    """Rules across sections: none beyond its problem block."""
+    """Rules across sections: the hertz measure is elasticity's."""
+    measures = cfg.verification.measures or ()
+    if "hertz" in measures:
+        raise ConfigError(f"verification.measures[{measures.index('hertz')}]", "hertz measures an elastic Hertz "
+                                                                                "contact (pde: elasticity)")
     return cfg
 
 

@@ -11,16 +11,26 @@ from .schema import DOCS, MESH_KINDS, POWER_LAW, SECTIONS, Config, fields_of, ke
 
 
 def _entries(cls):
-    """(name, section class or None, default, example, doc, only) of each key of a section, the sections the
-    units register after the core keys of Config."""
+    """(name, section class or None, default, example, doc, only, required) of each key of a section, the
+    sections the units register after the core keys of Config; a required key's doc starts with "required"."""
     rows = []
     for name in keys_of(cls):
         f = fields_of(cls)[name]
+        required = f.metadata["required"]
+        doc = f.metadata["doc"]
+        if "{choices}" in doc:
+            doc = doc.replace("{choices}", _choices(name if cls is Config else f"{cls.__name__.lower()}.{name}"))
         rows.append((name, f.type if f.type in SECTIONS else None, f.default, f.metadata["example"],
-                     f.metadata["doc"], f.metadata["only"]))
+                     ("required; " if required else "") + doc, f.metadata["only"], required))
     if cls is Config:
-        rows += [(name, section.cls, None, None, section.doc, only) for name, section, only in units.sections()]
+        rows += [(name, section.cls, None, None, section.doc, only, False) for name, section, only in units.sections()]
     return rows
+
+
+def _choices(path):
+    """The units the key at `path` (study_type, problem.pde, problem.method) chooses among, each with its DOC:
+    "poisson (the scalar model) | elasticity (docs/elasticity.md)"."""
+    return " | ".join(name + (f" ({unit.DOC})" if unit.DOC else "") for name, unit in units.KINDS[path].items())
 
 
 def template():
@@ -33,7 +43,7 @@ def template():
 
 def _template_lines(cls, depth, commented):
     lines = []
-    for name, section, value, example, doc, only in _entries(cls):
+    for name, section, value, example, doc, only, _ in _entries(cls):
         off = commented or bool(only)
         lead = ("# " if off else "") + "  " * depth  # a commented block uncomments as a whole
         comment = f"  # {doc}" + (f"; {only}" if only else "")
@@ -46,16 +56,18 @@ def _template_lines(cls, depth, commented):
 
 
 def documented_keys(cls=Config, prefix=""):
-    """(dotted path, default as YAML, description, when it applies) of every key, sections included: the
-    config reference (docs/reference/config.md) is generated from these, as `signorini init` is."""
+    """(dotted path, default as YAML ("" for a section or a required key), description, when it applies) of
+    every key, sections included: the config reference (docs/reference/config.md) is generated from these, as
+    `signorini init` is; a required key's description starts with "required"."""
     rows = []
-    for name, section, value, example, doc, only in _entries(cls):
+    for name, section, value, example, doc, only, required in _entries(cls):
         path = f"{prefix}.{name}" if prefix else name
         if section is not None:
             rows.append((path, "", doc, only))
             rows += documented_keys(section, path)
         else:
-            rows.append((path, _flow(example if value is None and example is not None else value), doc, only))
+            shown = {} if value == () and isinstance(example, dict) else value  # a mapping kept as pairs
+            rows.append((path, "" if required or value is None else _flow(shown), doc, only))
     return rows
 
 
@@ -92,9 +104,9 @@ def to_dict(cfg):
         out["problem"].pop("define")
     if cfg.solver.method != "newtonls":  # the line search is for newtonls only (rejected otherwise)
         out["solver"].pop("line_search")
-    pde, _, study = units.chosen(cfg)
+    pde, method, study = units.chosen(cfg)
     out["problem"] = {key: value for key, value in out["problem"].items() if key in ("pde", "method") + pde.KEYS}
-    for key in study.UNUSED:
+    for key in (*method.UNUSED, *study.UNUSED):
         out.pop(key, None)
     if cfg.limit is not None:
         out["limit"] = {key: value for key, value in out["limit"].items()

@@ -43,13 +43,14 @@ class ConfigError(ValueError):
         super().__init__(f"{path}: {message}" if path else message)
 
 
-def key(default=None, doc="", example=None, only="", internal=False, hashed_at_default=True):
+def key(default=None, doc="", example=None, only="", internal=False, hashed_at_default=True, required=False):
     """A config key: its default (the one place it is written: the loader and `signorini init` read
     it here), its documentation, a value for the template where it has none, and when it applies.
+    required: the loader refuses a config without it (where it applies), so the reference shows no default.
     hashed_at_default=False: a key added after results were recorded enters the config hash only when it
     differs from its default, so those results still resume."""
     return field(default=default, metadata={"doc": doc, "example": example, "only": only, "internal": internal,
-                                            "hashed_at_default": hashed_at_default})
+                                            "hashed_at_default": hashed_at_default, "required": required})
 
 
 # --- the ε law ----------------------------------------------------------------------------------------
@@ -101,15 +102,17 @@ class Epsilon:
 
 @dataclass(frozen=True)
 class Mesh:
-    kind: str = key("unit_square", "unit_square | unit_cube | gmsh | file")
+    kind: str = key("unit_square", "unit_square | unit_cube | gmsh | file", required=True)
     refinements: tuple = key((8, 16, 32, 64), "unit_square/cube: cells per side, one level each, increasing; "
-                                              "gmsh/file with refine: uniform: refinements of the base mesh")
+                                              "gmsh/file with refine: uniform: refinements of the base mesh",
+                             required=True)
     diagonal: str = key("right", "right | left | crossed (kind: unit_square only)")
     geometry: str = key("", "a shipped geometry (meshes/<name>.geo) or a .geo file", example="half_disk",
-                        only="only with kind: gmsh")
-    sizes: tuple = key((), "target cell size per level, decreasing", example=(0.2, 0.1), only="only with kind: gmsh")
+                        only="only with kind: gmsh", required=True)
+    sizes: tuple = key((), "target cell size per level, decreasing", example=(0.2, 0.1), only="only with kind: gmsh",
+                       required=True)
     path: tuple = key((), ".msh files, one per level (the base mesh with refine: uniform)",
-                      example=("mesh.msh",), only="only with kind: file")
+                      example=("mesh.msh",), only="only with kind: file", required=True)
     refine: str = key("none", "none | uniform: levels refine one base mesh (nested)",
                       only="only with kind: gmsh or file")
     cache: str = key("", "where gmsh meshes are kept (empty: meshes/cache for a shipped geometry, "
@@ -147,20 +150,24 @@ class Problem:
                                           "(docs/limit.md)")
     define: tuple = key((), "named subexpressions, in order (later names may use earlier ones)",
                         example={"r": "sqrt(x**2 + y**2)", "t": "atan2(y, x)"}, only="optional")
-    pde: str = key("poisson", "poisson (the scalar model) | elasticity (docs/elasticity.md)")
-    method: str = key("penalty", "how the contact condition enters the discrete problem: penalty (the compliance "
-                                 "model, ε and α)", hashed_at_default=False)
+    pde: str = key("poisson", "{choices}")  # the registered problems, each with its DOC (config/units.py)
+    method: str = key("penalty", "how the contact condition enters the discrete problem: {choices}",
+                      hashed_at_default=False)
     gap: expressions.Expression = key(None, "elasticity: the initial gap g0 in x, y (z) (default 0)",
                                       only="only with pde: elasticity")
     normal: tuple = key(None, "elasticity: the obstacle's unit normal, d numbers (default: Γ_C's outward normal)",
                         only="only with pde: elasticity")
+    hertz_radius: float = key(None, "elasticity: the radius R of a Hertz contact (a cylinder in 2-D, a sphere in "
+                                    "3-D): its half-width, peak pressure and force beside Hertz's (data only)",
+                              example=1.0, only="only with pde: elasticity and no exact")
 
 
 @dataclass(frozen=True)
 class PositivePart:
     """[u]_+ exactly, or smoothed as (u + sqrt(u^2 + delta^2))/2 with delta an expression in h, eps."""
     kind: str = key("exact", "exact | smooth")
-    delta: expressions.Expression = key(None, "δ(h, eps) > 0 (docs/stability.md)", example=DEFAULT_DELTA,
+    delta: expressions.Expression = key(None, f"δ(h, eps) > 0, default {DEFAULT_DELTA} (docs/stability.md)",
+                                        example=DEFAULT_DELTA,
                                         only="only with kind: smooth")
 
 
@@ -212,7 +219,7 @@ class Verification:
 @dataclass(frozen=True)
 class Expect:
     """Rates the user requires: exit status 1 when an observed fitted rate < rate - tolerance."""
-    rates: tuple = key((), "norm: rate pairs", example={"L2": 2.0, "H1": 1.0})
+    rates: tuple = key((), "norm: rate pairs", example={"L2": 2.0, "H1": 1.0}, required=True)
     tolerance: float = key(0.1, "missed when observed < rate - tolerance")
 
 
@@ -222,9 +229,10 @@ class Limit:
     study."""
     alpha: tuple = key((2.0,), "the α values")
     epsilon: tuple = key((), "epsilon_sweep: decreasing ε values, or {start, stop, count}",
-                         example=(1.0, 0.1, 0.01), only="only with study_type: epsilon_sweep")
+                         example=(1.0, 0.1, 0.01), only="only with study_type: epsilon_sweep", required=True)
     theta: float = key(1.0, "total_error: ε = θ h^p", only="only with study_type: total_error")
-    exponent: tuple = key((), "total_error: the p values", example=(1.0, 2.0), only="only with study_type: total_error")
+    exponent: tuple = key((), "total_error: the p values", example=(1.0, 2.0), only="only with study_type: total_error",
+                          required=True)
     fit_last: int = key(3, "the fitted rate uses this many finest points")
 
 
@@ -245,19 +253,41 @@ class Element:
     degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature exact or a Gauss rule)")
 
 
+@dataclass(frozen=True)
+class Map:
+    """A rate map (study_type: map, docs/maps.md): the grid (dotted key -> values), explicit points, local
+    workers and MPI ranks per point; `studies` are the points' validated configs, in point order."""
+    grid: dict = key(None, "dotted key -> values; the map is every combination (last key fastest)",
+                     example={"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]})
+    points: tuple = key((), "explicit combinations as well, after the grid's: a list of {dotted key: value}",
+                        example=({"alpha": 4, "epsilon.law": "constant"},))
+    jobs: int = key(1, "local workers: jobs > 1 runs the map again under `mpirun -n jobs`")
+    ranks_per_point: int = key(1, "under mpirun: COMM_WORLD split into groups of this many ranks")
+    studies: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
+    values: tuple = field(default=(), repr=False, compare=False, metadata={"internal": True, "derived": True})
+
+    @property
+    def varied(self):
+        """The varied keys, grid first, in the order given: the columns of map.csv."""
+        keys = list(self.grid)
+        for point in self.points:
+            keys += [key for key in point if key not in keys]
+        return tuple(keys)
+
+
 @dataclass(frozen=True, kw_only=True)
 class Config:
-    study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study")
+    study: str = key(None, "names the output folder <output.dir>/<study>/", example="my-study", required=True)
     description: str = key("", "one line, shown by `signorini list`")
     dimension: int = key(None, "2 or 3 (default: the mesh's)", example=2)
     alpha: float = key(2.0, ">= 1; <= 3 in 3-D (the paper's condition (5)) unless outside_theory")
     outside_theory: bool = key(False, "true: run what a hypothesis check would refuse (alpha > 3 in 3-D); "
                                       "verdicts say `not covered`")
     epsilon: Epsilon = key(Epsilon(), "the penalty law eps(h)")
-    mesh: Mesh = key(None, "the levels")
+    mesh: Mesh = key(None, "the levels", required=True)
     contact: str = key(None, "Γ_C: a face (left right bottom top; front back in 3-D) or a mesh's physical group",
-                       example="bottom")
-    problem: Problem = key(None, "give exact, or f (and g)")
+                       example="bottom", required=True)
+    problem: Problem = key(None, "give exact, or f (and g)", required=True)
     positive_part: PositivePart = key(PositivePart(), "exact | smooth | {kind: smooth, delta: ...}")
     contact_quadrature: object = key("exact", "exact | vertex | an integer >= 1 (a Gauss rule of that degree); "
                                               "default exact (P2: each facet cut at the zeros of its quadratic)")
@@ -266,12 +296,11 @@ class Config:
     output: Output = key(Output(), "where and what is written")
     verification: Verification = key(Verification(), "rate fits, verdicts, extra measures")
     expect: Expect = key(None, "rates to require: exit status 1 when missed", only="optional")
-    study_type: str = key("refinement", "refinement | signorini | epsilon_sweep | total_error | map")
-    map: object = key(None, "a rate map: dotted keys -> values, one refinement study per combination",
-                      example={"grid": {"epsilon.theta": [0.1, 1, 10], "alpha": [1.5, 2, 3]}, "jobs": 1,
-                               "ranks_per_point": 1}, only="only with study_type: map")
+    study_type: str = key("refinement", "{choices}")
+    map: Map = key(None, "a rate map: one refinement study per point (grid or points, or both)",
+                   only="only with study_type: map", required=True)
     limit: Limit = key(None, "the ε → 0 studies (docs/limit.md)",
-                       only="only with study_type: epsilon_sweep or total_error")
+                       only="only with study_type: epsilon_sweep or total_error", required=True)
     text: str = field(default="", repr=False, compare=False, metadata={"internal": True})  # the YAML as given
     # (key, section) pairs: the top-level sections a problem, method or study type registers (material)
     sections: tuple = field(default=(), repr=False, metadata={"internal": True})
@@ -309,7 +338,7 @@ class UnitSection:
 
 # the core sections (a problem, method or study type registers its own: config/units.py)
 SECTIONS = (Config, Element, Epsilon, Mesh, Problem, PositivePart, Solver, Continuation, Output, Verification,
-            Expect, Limit)
+            Expect, Limit, Map)
 REQUIRED = ("study", "mesh", "contact")  # top-level keys without a default (problem: its own message)
 
 

@@ -19,6 +19,9 @@ def validate(raw, folder=None):
         cfg = _core(raw, folder)
         pde, method, study = units.chosen(cfg)
         cfg = dataclasses.replace(cfg, sections=_sections(raw, cfg))
+        for key, hint in method.UNUSED.items():
+            if key in raw:
+                raise ConfigError(key, f"not used by problem.method {method.NAME}{hint}")
         cfg = method.check_config(pde.check_config(cfg, raw), raw)
         return _check_element(_study_type(_check_geometry_mesh(cfg, raw, study), raw, pde, study), pde, study)
 
@@ -114,7 +117,7 @@ def _study_type(cfg, raw, pde, study):
     """The study type's rules: the blocks only some types read (map, limit), the keys it does not use, the
     Signorini problem of the types that solve the VI, its limit block."""
     for block, has in (("map", lambda unit: unit.POINTS), ("limit", lambda unit: unit.LIMIT is not None)):
-        if block in raw and not has(study) and not study.POINTS:
+        if block in raw and not has(study):
             raise ConfigError(block, f"only meaningful with study_type {units.takers(units.STUDY_TYPES, has)}")
     if study.POINTS:  # its block and points: config.map, which validates each point as a study
         return cfg

@@ -2,6 +2,7 @@
 are refinement studies, each validated as one."""
 
 NAME = "map"
+DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = True  # its points are studies of their own: config/map.py reads its block
 VI = False
 GEOMETRY = True

@@ -1,6 +1,7 @@
 """The refinement study's config (study_type: refinement): one solve per level; every core key applies."""
 
 NAME = "refinement"
+DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = False  # not a map of studies
 VI = False  # solves the problem itself, not its Signorini limit
 GEOMETRY = True  # runs on gmsh and .msh meshes

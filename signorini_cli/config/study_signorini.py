@@ -2,6 +2,7 @@
 every level, no ε and no α."""
 
 NAME = "signorini"
+DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = False
 VI = True  # solves the problem's Signorini VI, whose nodal bounds u_i <= 0 are P1 only
 GEOMETRY = False

@@ -5,6 +5,7 @@ from . import validators as check
 from .schema import ConfigError, Limit
 
 NAME = "total_error"
+DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = False
 VI = True
 GEOMETRY = False

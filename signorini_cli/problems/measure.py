@@ -16,11 +16,13 @@ def integrate(expr, measure):
     return comm.allreduce(fem.assemble_scalar(fem.form(expr * measure)), op=MPI.SUM)
 
 
-def errors(u_h, u_exact, h):
+def errors(u_h, u_exact, h, degree=None):
     """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (the seminorm, as in the paper)}, of a scalar or
-    vector u_h; h, the mesh's size (Domain.h), and u_h's degree set the quadrature (element.error_degree)."""
+    vector u_h; the quadrature `degree` the data need (posed.Profile), else by h, the mesh's size (Domain.h),
+    and u_h's degree (element.error_degree)."""
     msh = u_h.function_space.mesh
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": error_degree(u_h.function_space, h)})
+    degree = error_degree(u_h.function_space, h) if degree is None else degree
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
     e = u_h - u_exact
     l2, h1 = integrate_together(msh, [ufl.inner(e, e), ufl.inner(ufl.grad(e), ufl.grad(e))], dx)
     return {"L2": np.sqrt(abs(l2)), "H1": np.sqrt(abs(h1))}
@@ -52,7 +54,7 @@ def difference_norms(u_h, u):
     V = u.function_space
     dx = ufl.Measure("dx", domain=V.mesh, metadata={"quadrature_degree": product_degree(V)})
     e = u - u_h
-    return {"L2": np.sqrt(abs(integrate(e**2, dx))),
+    return {"L2": np.sqrt(abs(integrate(ufl.inner(e, e), dx))),
             "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
 
 
@@ -128,17 +130,25 @@ def penetration(u_h, contact_dofs):
     return max(u_h.function_space.mesh.comm.allreduce(local, op=MPI.MAX), 0.0)
 
 
-def vertex_penetration(comm, values):
-    """max [w_h]_+ over the Γ_C facets' vertex values (facets, n+1) of every rank: exact for P1."""
+def vertex_penetration(comm, values, degree=1):
+    """max [w_h]_+ over the Γ_C facets' dof values (facets, k) of every rank: exact for P1 (a vertex's) and
+    for P2 on segments (each segment's quadratic's maximum)."""
+    if degree == 2 and values.size:
+        values = quadratic_max(values)
     local = float(values.max()) if values.size else 0.0
     return max(comm.allreduce(local, op=MPI.MAX), 0.0)
 
 
-def vertex_contact_measure(comm, values, points):
-    """|{w_h > 0} ∩ Γ_C| from the P1 vertex values (facets, n+1) and points (facets, n+1, 3) of the rank's
-    owned Γ_C facets (positive_fraction: exact for P1)."""
-    local = float(np.sum(facet_sizes(points) * positive_fraction(values))) if len(values) else 0.0
-    return comm.allreduce(local, op=MPI.SUM)
+def vertex_contact_measure(comm, values, points, degree=1):
+    """|{w_h > 0} ∩ Γ_C| from the dof values (facets, k) and points (facets, k, 3) of the rank's owned Γ_C
+    facets: exact for P1 (positive_fraction) and for P2 on segments (quadratic_positive_fraction)."""
+    if not len(values):
+        return comm.allreduce(0.0, op=MPI.SUM)
+    if degree == 2:
+        fraction, vertices = quadratic_positive_fraction(values), points[:, :2]
+    else:
+        fraction, vertices = positive_fraction(values), points
+    return comm.allreduce(float(np.sum(facet_sizes(vertices) * fraction)), op=MPI.SUM)
 
 
 def contact_measure(u_h, facet_dofs, facet_points):

@@ -1,5 +1,7 @@
 """Problems posed right, or refused before solving: the data finite wherever the solve evaluates them,
 and a manufactured Signorini solution that is one (u_S <= 0, ∂_n u_S <= 0, u_S ∂_n u_S = 0 on Γ_C)."""
+from dataclasses import dataclass
+
 import numpy as np
 from mpi4py import MPI
 
@@ -9,7 +11,7 @@ from dolfinx import fem
 
 from ..config import ConfigError, expressions
 from ..meshing.meshes import CONTACT, facet_vertices
-from . import compliance, elasticity
+from . import compliance, elasticity, element
 
 # One-sided difference step for ∂_n u_S (domains are O(1)): its truncation error δ|u''|/2 and round-off
 # 1e-16|u|/δ both stay near 1e-7 relative, far below SIGN_TOL.
@@ -17,30 +19,83 @@ STEP = 1e-7
 SIGN_TOL = 1e-5  # relative to max(|u_S|, |∂_n u_S|) on Γ_C: a hundred times the difference's error
 
 
-def check(cfg, domain, u_exact, eps_value, cells=True):
+# The data's integrals must settle with the quadrature degree: raising it from 16 to 20 changes the load
+# vector of smooth data by round-off on the coarsest mesh of a family (measured on ∇u_ex·∇v: <= 7.5e-16
+# relative from 2-D N = 8 to 3-D N = 2, sin(2πx)(1-y)², sin(6πx)(1-y)², sin(2πx)sin(πy)(1-z)²), that of an
+# unbounded f by far more ((|x - 0.3|^1.5 - 0.1)(1-y)²: f ~ |x - 0.3|^-1/2 along x = 0.3)
+SETTLE_DEGREES = (16, 20)
+SETTLE_TOL = 1e-8
+
+
+def check(cfg, domain, u_exact, eps_value, coarsest=None):
     """Raise ConfigError (on every rank) when the level's data are not finite at the points the solve
-    and its errors evaluate them (the cells' quadrature points only with `cells`), or when a manufactured
-    Signorini solution violates its conditions."""
+    and its errors evaluate them, or do not settle with the quadrature degree (on the family's `coarsest`
+    Domain, when given: once per family), or when a manufactured Signorini solution violates its conditions."""
     msh = domain.mesh
     if cfg.problem.exact is not None:
         _finite(msh, "problem.exact", cfg.problem.exact.text, _exact_at_vertices(cfg, msh, eps_value))
-        if cells:
-            f, _ = compliance.data(cfg, msh, eps_value, u_exact, ufl.FacetNormal(msh))
-            _finite(msh, "problem.exact", f"f = -Δ({cfg.problem.exact.text})", _at_cell_points(msh, f))
-            _finite(msh, "problem.exact", f"∇({cfg.problem.exact.text})", _at_cell_points(msh, ufl.grad(u_exact)))
-    elif cells:
-        f, g = compliance.data(cfg, msh, eps_value, None, ufl.FacetNormal(msh))
-        for key, value in (("f", f), ("g", g)):
-            if getattr(cfg.problem, key) is not None:
-                _finite(msh, f"problem.{key}", getattr(cfg.problem, key).text, _at_cell_points(msh, value))
+    found = _check_cells(cfg, coarsest, eps_value) if coarsest is not None else None
     if cfg.problem.exact_solves == "signorini":
         signorini_conditions(cfg, domain)
+    return found
 
 
-def check_elastic(cfg, domain, u_exact, eps_value, cells=True):
+def _check_cells(cfg, coarsest, eps_value):
+    """The scalar data finite at the cells' quadrature points of the coarsest mesh, and their load settled;
+    their Profile."""
+    msh = coarsest.mesh
+    V = compliance.space(cfg, msh)
+    v = ufl.TestFunction(V)
+    if cfg.problem.exact is not None:
+        text = cfg.problem.exact.text
+        u_exact = compliance.exact_solution(cfg, msh, eps_value)
+        f, _ = compliance.data(cfg, msh, eps_value, u_exact, ufl.FacetNormal(msh))
+        _finite(msh, "problem.exact", f"f = -Δ({text})", _at_cell_points(msh, f))
+        _finite(msh, "problem.exact", f"∇({text})", _at_cell_points(msh, ufl.grad(u_exact)))
+        _settles(V, "problem.exact", f"f = -Δ({text})", compliance.on_mesh(f, msh) * v,
+                 ufl.inner(ufl.grad(u_exact), ufl.grad(v)))
+        numpy_exact = compliance.numpy_exact(cfg, msh.geometry.dim)
+        return profile(cfg, coarsest, compliance.on_mesh(f, msh), u_exact,
+                       lambda points: np.asarray(numpy_exact(points, eps_value), dtype=float)[..., None]
+                       * np.ones(points.shape[:-1] + (1,)))
+    f, g = compliance.data(cfg, msh, eps_value, None, ufl.FacetNormal(msh))
+    for key, value in (("f", f), ("g", g)):
+        if getattr(cfg.problem, key) is not None:
+            _finite(msh, f"problem.{key}", getattr(cfg.problem, key).text, _at_cell_points(msh, value))
+    _settles(V, "problem.f", cfg.problem.f.text, compliance.on_mesh(f, msh) * v, None)
+    return profile(cfg, coarsest, compliance.on_mesh(f, msh), None, None)
+
+
+def _settles(V, path, text, load, balance):
+    """Refuse data whose load ∫ load(v) dx on V changes by more than SETTLE_TOL between the Gauss rules of
+    SETTLE_DEGREES: no rule integrates it to the precision the study reports. Relative to the largest entry
+    of the load, or of `balance` (a(u_ex, v): what the load balances; a harmonic u_ex has a load of round-off)."""
+    msh = V.mesh
+    owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+
+    def assembled(integrand, q):
+        dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
+        return fem.assemble_vector(fem.form(integrand * dx)).array[:owned]
+    loads = [assembled(load, q) for q in SETTLE_DEGREES]
+    change = np.abs(loads[1] - loads[0])
+    largest = np.abs(loads[1]) if balance is None else np.abs(np.r_[loads[1], assembled(balance, SETTLE_DEGREES[0])])
+    scale = msh.comm.allreduce(float(largest.max(initial=0.0)), op=MPI.MAX)
+    k = int(np.argmax(change)) if len(change) else None
+    local = (float(change[k]), V.tabulate_dof_coordinates()[k // V.dofmap.index_map_bs]) if k is not None else \
+        (-1.0, None)
+    worst, where = max(msh.comm.allgather(local), key=lambda item: item[0])
+    if worst > SETTLE_TOL * scale:
+        low, high = SETTLE_DEGREES
+        raise ConfigError(path, f"the load of {text} does not settle: quadrature degree {low} -> {high} changes "
+                                f"it by {worst / scale:.1e} relative (most near {_point(where, msh.geometry.dim)});"
+                                " the data are not smooth enough (unbounded?) for the error the study reports")
+
+
+def check_elastic(cfg, domain, u_exact, eps_value, coarsest=None):
     """Raise ConfigError (on every rank) when an elastic problem's data are not finite where the solve and
     its errors evaluate them: u_ex's components and the gap g0 at the vertices, f = −div σ(u_ex) and ∇u_ex
-    at the cells' quadrature points (with `cells`)."""
+    at the quadrature points of the family's `coarsest` cells (when given: once per family), whose load
+    ∫ σ(u_ex):ε(v) must also settle with the quadrature degree."""
     msh = domain.mesh
     points = msh.geometry.x
     variables = dict(zip(("x", "y", "z"), points.T[:msh.geometry.dim]), eps=eps_value)
@@ -51,12 +106,26 @@ def check_elastic(cfg, domain, u_exact, eps_value, cells=True):
             with np.errstate(all="ignore"):  # a nan is reported below, with its point
                 values = np.asarray(component(variables, functions), dtype=float)
             _finite(msh, path, component.text, (points, np.broadcast_to(values, points.shape[:1])))
-    if u_exact is not None and cells:
+    if cfg.problem.exact is not None and coarsest is not None:
+        msh = coarsest.mesh
+        u_c = elasticity.exact_solution(cfg, msh, eps_value)
         mu, lmbda = elasticity.lame(cfg.material)
-        f = -ufl.div(elasticity.sigma(u_exact, mu, lmbda))
         texts = ", ".join(c.text for c in cfg.problem.exact)
-        _finite(msh, "problem.exact", f"f = -div σ(({texts}))", _at_cell_points(msh, f))
-        _finite(msh, "problem.exact", f"∇(({texts}))", _at_cell_points(msh, ufl.grad(u_exact)))
+        _finite(msh, "problem.exact", f"f = -div σ(({texts}))", _at_cell_points(msh, -ufl.div(
+            elasticity.sigma(u_c, mu, lmbda))))
+        _finite(msh, "problem.exact", f"∇(({texts}))", _at_cell_points(msh, ufl.grad(u_c)))
+        V = elasticity.space(cfg, msh)
+        v = ufl.TestFunction(V)
+        f = -ufl.div(elasticity.sigma(u_c, mu, lmbda))
+        _settles(V, "problem.exact", f"f = -div σ(({texts}))", ufl.inner(f, v),
+                 ufl.inner(elasticity.sigma(u_c, mu, lmbda), elasticity.strain(v)))
+
+        def components(points):
+            variables = dict(zip(("x", "y", "z"), np.moveaxis(points, -1, 0)[:msh.geometry.dim]), eps=eps_value)
+            return np.stack([np.broadcast_to(c(variables, functions), points.shape[:-1])
+                             for c in cfg.problem.exact], axis=-1)
+        return profile(cfg, coarsest, f, u_c, components)
+    return None
 
 
 def _exact_at_vertices(cfg, msh, eps_value):
@@ -163,3 +232,100 @@ def _cell_centres(msh, cells):
 
 def _point(point, dim):
     return "(" + ", ".join(f"{c:.4g}" for c in point[:dim]) + ")"
+
+
+# --- the quadrature degree the data need --------------------------------------------------------------
+
+CANDIDATES = (6, 8, 10, 12, 14, 16)  # the Gauss degrees a level's data integrals may take
+REFERENCE_DEGREE = 20
+DATA_TOL = 1e-10  # the relative change against REFERENCE_DEGREE a level's load and error integrals may keep
+PROFILE_VALUES = 1 << 20  # values evaluated at once (8 MB; all rules' points of a cell: ~260 in 2-D, ~3300 in 3-D)
+
+
+@dataclass(frozen=True)
+class Profile:
+    """How the data's integrals settle with the Gauss degree, measured once on a family's coarsest mesh (size
+    h0): the relative change of the load (per cell and basis function) and of the error integrals of u_ex's
+    interpolant (L2 and H1) at each candidate degree against REFERENCE_DEGREE."""
+    h0: float
+    load: dict
+    error: dict
+    k: int  # the element degree
+
+    def degrees(self, h, load_low, error_low):
+        """(load degree, error degree) of a level of size h: the lowest candidates, not below the defaults,
+        whose change scaled to h as a Gauss rule's error on smooth data, (h/h0)^(q+1) for the load and
+        (h/h0)^(q-k) relative to an error integral of order h^(2k+2), stays below DATA_TOL."""
+        def lowest(changes, low, power):
+            fits = [q for q in CANDIDATES if q >= low and changes.get(q, 0.0) * (h / self.h0) ** power(q) <= DATA_TOL]
+            return max(low, fits[0] if fits else CANDIDATES[-1])
+        return (lowest(self.load, load_low, lambda q: q + 1),
+                lowest(self.error, error_low, lambda q: max(q - self.k, 1)) if self.error else error_low)
+
+
+def profile(cfg, coarsest, f, exact, components):
+    """The Profile of the data on the family's coarsest Domain: f (UFL, the load's density), and with `exact`
+    (UFL u_ex, None for a data-only scene) its interpolant's errors; `components(points)`: u_ex in numpy,
+    (..., c). All candidate rules at once, by chunks of cells (PROFILE_VALUES: the peak memory stays a chunk's)."""
+    msh = coarsest.mesh
+    V = element.space(msh, cfg.element.degree)
+    cell_type = basix.cell.string_to_type(msh.topology.cell_name())
+    rules = {q: basix.make_quadrature(cell_type, q) for q in CANDIDATES + (REFERENCE_DEGREE,)}
+    X = np.concatenate([X for X, _ in rules.values()])
+    parts = [ufl.as_vector([f]) if not ufl.shape(f) else f]
+    if exact is not None:
+        u = ufl.as_vector([exact]) if not ufl.shape(exact) else exact
+        parts += [u, ufl.as_vector([ufl.grad(u)[i, j] for i in range(len(u)) for j in range(msh.geometry.dim)])]
+    expression = fem.Expression(ufl.as_vector([c for p in parts for c in p]), X)
+    owned = msh.topology.index_map(msh.topology.dim).size_local
+    load_change, load_scale = {q: 0.0 for q in rules}, 0.0
+    sums = {q: np.zeros(2) for q in rules}
+    chunk = max(1, PROFILE_VALUES // (len(X) * sum(len(p) for p in parts)))
+    for start in range(0, owned, chunk):
+        cells = np.arange(start, min(start + chunk, owned), dtype=np.int32)
+        found = _chunk(V, rules, expression.eval(cells).reshape(len(cells), len(X), -1), [len(p) for p in parts],
+                       cells, components if exact is not None else None)
+        ref_load = found[REFERENCE_DEGREE][0]
+        load_scale = max(load_scale, float(np.abs(ref_load).max(initial=0.0)))
+        for q, (load, errors) in found.items():
+            load_change[q] = max(load_change[q], float(np.abs(load - ref_load).max(initial=0.0)))
+            sums[q] += errors
+    comm = msh.comm
+    scale = max(comm.allreduce(load_scale, op=MPI.MAX), 1e-300)
+    sums = {q: comm.allreduce(s, op=MPI.SUM) for q, s in sums.items()}
+    ref = sums[REFERENCE_DEGREE]
+    error = {q: float(np.max(np.abs(sums[q] - ref) / np.where(ref > 0, ref, np.inf))) for q in CANDIDATES}
+    return Profile(coarsest.h, {q: comm.allreduce(load_change[q], op=MPI.MAX) / scale for q in CANDIDATES},
+                   error if exact is not None else {}, cfg.element.degree)
+
+
+def _chunk(V, rules, values, sizes, cells, components):
+    """{q: (the cells' load vectors (cells, dofs, f), their error integrals (L2², H1²) or zeros)} of one chunk
+    of cells on affine simplices: values (cells, points, f | u_ex | ∇u_ex) at every rule's points in turn."""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    vertices = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, tdim + 1)[cells]][..., :tdim]
+    J = np.swapaxes(vertices[:, 1:] - vertices[:, :1], 1, 2)  # (cells, d, d): x = x0 + J X
+    det = np.abs(np.linalg.det(J))
+    X = np.concatenate([X for X, _ in rules.values()])
+    tab = V.element.basix_element.tabulate(1, X)[..., 0]  # (1 + d, points, dofs)
+    if components is not None:
+        cell_dofs = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[cells]
+        nodal = components(V.tabulate_dof_coordinates()[cell_dofs])  # (cells, dofs, c)
+        inverse = np.linalg.inv(J)
+    f_end, u_end = sizes[0], sizes[0] + (sizes[1] if len(sizes) > 1 else 0)
+    start, found = 0, {}
+    for q, (Xq, wq) in rules.items():
+        at = slice(start, start + len(Xq))
+        start += len(Xq)
+        load = np.einsum("cpf,pk,p,c->ckf", values[:, at, :f_end], tab[0, at], wq, det, optimize=True)
+        errors = np.zeros(2)
+        if components is not None:
+            e = np.einsum("pk,ckf->cpf", tab[0, at], nodal, optimize=True) - values[:, at, f_end:u_end]
+            reference = np.einsum("jpk,ckf->cpfj", tab[1:, at], nodal, optimize=True)  # ∇ in reference coordinates
+            grad_e = np.einsum("cji,cpfj->cpfi", inverse, reference, optimize=True).reshape(len(cells), len(Xq), -1) \
+                - values[:, at, u_end:]
+            errors = np.array([np.einsum("cpf,p,c->", e**2, wq, det, optimize=True),
+                               np.einsum("cpg,p,c->", grad_e**2, wq, det, optimize=True)])
+        found[q] = (load, errors)
+    return found

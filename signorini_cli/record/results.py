@@ -79,8 +79,46 @@ def summary_record(summary):
 
 
 def write_status(folder, status):
-    """status.txt alone, in place: when the results cannot be written (a full disk), it still says why."""
-    files.overwrite(Path(folder) / STATUS_FILE, status + "\n")
+    """status.txt alone, replaced whole (a run or report reading it meanwhile sees the old line or the new),
+    else in place: when no new file fits (a full disk), it still says why."""
+    path = Path(folder) / STATUS_FILE
+    try:
+        files.replace(path, functools.partial(Path.write_text, data=status + "\n"))
+    except OSError:
+        files.overwrite(path, status + "\n")
+
+
+def read_status(folder):
+    """A study folder's status.txt line ('' when absent, also when another run removes it as it is read)."""
+    try:
+        return (Path(folder) / STATUS_FILE).read_text().strip()
+    except FileNotFoundError:
+        return ""
+
+
+def restore(cfg, levels, status, mpi_size):
+    """A run refused as bad input once under way leaves its folder as it found it: the `levels` it resumed
+    with their status line, or no results at all."""
+    if levels:
+        write_files(studies.study_of(cfg, levels), mpi_size, status or None)
+    else:
+        start_over(cfg.output_dir)
+
+
+# what a run writes into its study folder (record.results, report.tables and plots, studies.fields)
+RESULT_FILES = ("*.csv", "*.h5", "*.md", "*.tex", "*.png", "*.pdf", STATUS_FILE, "fields/*.xdmf", "fields/*.h5")
+
+
+def start_over(folder, also=()):
+    """Remove a study's old results (--force): the new run's tables and figures never sit beside the old
+    ones, also when it is interrupted. Only the files a run writes (and the names `also`), in case the
+    folder holds others."""
+    for pattern in RESULT_FILES + tuple(also):
+        for path in Path(folder).glob(pattern):
+            path.unlink()
+    fields = Path(folder) / "fields"
+    if fields.is_dir() and not any(fields.iterdir()):
+        fields.rmdir()
 
 
 def record_attrs(cfg, levels, mpi_size, status):

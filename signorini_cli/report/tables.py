@@ -10,7 +10,7 @@ from ..analysis import rates
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
 from ..record import csvfile
-from . import latex, verdicts
+from . import latex, pressure, verdicts
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
 TERMINAL_WIDTH = 120  # columns of a terminal table; wider ones wrap into blocks
@@ -36,6 +36,7 @@ def choose(rows, columns="paper", proven=None):
         lead = [c for c in PAPER_LEADING if c in rows[0] and not (c == "h" and h_per_N(rows))]
         if "epsilon" in lead and all(row["epsilon"] == 0 for row in rows):  # the Signorini problem: no ε,
             lead = [c for c in lead if c != "epsilon"] + [c for c in ("contact_measure",) if c in rows[0]]
+        lead += [c for c in names.HERTZ if c in rows[0] and "half_width" in rows[0]]  # a Hertz scene's own figures
         return lead, paper_norms(measured, proven or {})  # its contact set's measure instead
     unknown = [c for c in columns if c not in rows[0]]
     if unknown:
@@ -139,9 +140,10 @@ def _format(column, value):
     return str(value)
 
 
-def comparison(studies, fit_levels=rates.FIT_LEVELS):
+def comparison(studies, fit_levels=None):
     """One row per study ({label: rows}): levels, finest converged h, total wall time, per norm the
-    finest error (<norm>_finest) and the slope fitted over the last `fit_levels` levels (<norm>_fit)."""
+    finest error (<norm>_finest) and its rate (<norm>_fit), the slope fitted as the study's verdict fits it:
+    over its last fit_levels[label] levels (a study not in `fit_levels`: rates.FIT_LEVELS)."""
     all_norms = list(dict.fromkeys(norm for rows in studies.values() for norm in norms(rows)))
     table = []
     for label, rows in studies.items():
@@ -151,12 +153,19 @@ def comparison(studies, fit_levels=rates.FIT_LEVELS):
         for norm in all_norms:
             points = [(row["h"], row[norm]) for row in ok if row.get(norm)]
             row[f"{norm}_finest"] = points[-1][1] if points else None
-            row[f"{norm}_fit"] = rates.slope(*zip(*points), k=fit_levels) if points else None
+            k = (fit_levels or {}).get(label, rates.FIT_LEVELS)
+            row[f"{norm}_fit"] = rates.slope(*zip(*points), k=k) if points else None
         table.append(row)
     return table, all_norms
 
 
-def summary_table(studies, fit_levels=rates.FIT_LEVELS):
+def fitted_over(studies, fit_levels=None):
+    """'the last k levels' when every study is fitted over the same k, else each study's own."""
+    ks = {(fit_levels or {}).get(label, rates.FIT_LEVELS) for label in studies}
+    return f"the last {ks.pop()} levels" if len(ks) == 1 else "each study's last verification.fit_levels levels"
+
+
+def summary_table(studies, fit_levels=None):
     """The comparison for the terminal: one line per study, each norm's finest error and fitted slope
     under its name (wrapped into blocks at TERMINAL_WIDTH)."""
     table, all_norms = comparison(studies, fit_levels)
@@ -169,7 +178,7 @@ def summary_table(studies, fit_levels=rates.FIT_LEVELS):
     return "\n".join(_aligned(groups))
 
 
-def write_comparison(studies, folder, fit_levels=rates.FIT_LEVELS):
+def write_comparison(studies, folder, fit_levels=None):
     """compare.csv, compare.md and compare.tex (fitting a page) of `studies` in `folder`; the paths."""
     table, all_norms = comparison(studies, fit_levels)
     folder = Path(folder)
@@ -184,7 +193,7 @@ def write_comparison(studies, folder, fit_levels=rates.FIT_LEVELS):
                                     _paper_number(row[f"{n}_finest"]), _rate(row[f"{n}_fit"], "–"))]) + " |"
               for row in table]
     paths[1].write_text("\n".join(lines) + "\n")
-    paths[2].write_text(_comparison_tex(table, all_norms, fit_levels))
+    paths[2].write_text(_comparison_tex(table, all_norms, fitted_over(studies, fit_levels)))
     return paths
 
 
@@ -192,7 +201,7 @@ def _paper_number(value, missing="–"):
     return missing if value is None else f"{value:.3e}"
 
 
-def _comparison_tex(table, all_norms, fit_levels):
+def _comparison_tex(table, all_norms, fitted):
     number = lambda v: "--" if v is None else latex.number(v, 3)  # noqa: E731
     cells = [("study", [_latex_text(row["study"]) for row in table]),
              ("levels", [str(row["levels"]) for row in table]),
@@ -203,7 +212,7 @@ def _comparison_tex(table, all_norms, fit_levels):
                   ("fit", [_rate(row[f"{norm}_fit"], "--", latex.rate) for row in table])]
     caption = ("Comparison of the studies " + ", ".join(_latex_text(row["study"]) for row in table)
                + f": per norm the error on the finest converged level and the slope of $\\log e$ against "
-               f"$\\log h$ fitted over the last {fit_levels} levels; time: wall time of all levels. "
+               f"$\\log h$ fitted over {fitted}; time: wall time of all levels. "
                + "; ".join(d for d in map(_definition, all_norms) if d) + ".")
     text = latex.table(cells, [(_header(n), 2) for n in all_norms], caption, latex.label("compare"), len(table))
     return "% comparison table written by signorini compare; needs \\usepackage{booktabs}\n" + text
@@ -440,6 +449,8 @@ def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""
                                              plotting.WIDTH_PT) for suffix in (".png", ".pdf")]
         elif fig.kind == "comparison":
             written += plotting.write_comparison(fig.data, folder, figure.get("width"))
+        elif fig.kind == "pressure":
+            written += pressure.write(fig.data, folder / Path(fig.name).parent, figure.get("width"))
     return written
 
 

@@ -10,8 +10,8 @@ def format_summary(summary):
     if summary.outside_theory:
         lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
     lines += textwrap.wrap(f"verification: rate = slope of log e against log h over the last {summary.fit_levels} "
-                           f"levels; interval: the fit ± 2 standard errors, the successive rates and where they head; every class needs "
-                           f"an interval within ± {summary.tolerance:g}", TERMINAL_WIDTH)
+                           f"levels; interval: the fit ± 2 standard errors, the successive rates and where they head; "
+                           f"every class needs an interval within ± {summary.tolerance:g}", TERMINAL_WIDTH)
     lines += [f"  {note}" for note in summary.notes]
     rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
     for v in summary.norms:
@@ -41,8 +41,9 @@ def markdown_lines(summary):
     lines = ["", "| norm | observed | interval | proven | verdict | why |", "|---|---|---|---|---|---|"]
     for v in summary.norms:
         proven = "–" if v.proven is None else f"{v.proven:g}"
-        lines.append(f"| {v.norm} | {_rate(v.observed)} | {interval(v)} | {proven} | {v.verdict} | "
-                     f"{v.reason.replace('|', '/')} |")
+        observed = _rate(v.observed) + (f" (log-corrected {_rate(v.log_corrected)})" if v.log_factor else "")
+        lines.append(f"| {v.norm} | {observed} | {interval(v)} | {proven} | {v.verdict} | "
+                     f"{v.reason.replace('|', chr(92) + '|')} |")  # |ln h| stays |ln h| in a table cell
     return lines
 
 

@@ -11,6 +11,7 @@ from ..analysis import verdict
 from ..config import ConfigError
 from ..meshing import meshes
 from ..problems import registry
+from ..solve import solver
 from . import jit_cache
 from . import refinement
 
@@ -37,13 +38,31 @@ class Point:
     levels: list = field(default_factory=list)
     failure: str = ""
     done: bool = False
+    before: list = field(default_factory=list)  # the levels an earlier run solved: the point goes on after them
+    taken: bool = True  # False: on_level left the point to another run (a chunk of the same map writes it)
+
+    @property
+    def outcome(self):
+        """The point's study as one outcome (the Study of a map says whether every point converged): converged
+        when it ended without an exception and every level converged, with the Newton iterations of all."""
+        converged = (self.done and not self.failure and bool(self.levels)
+                     and all(lv.outcome.converged for lv in self.levels))
+        return solver.Outcome(converged, self.failure or ("CONVERGED" if converged else "NOT_CONVERGED"),
+                              sum(lv.outcome.newton_its for lv in self.levels),
+                              sum(lv.outcome.linear_its for lv in self.levels), ())
+
+
+def group_count(size, ranks_per_point):
+    """How many groups of ranks_per_point ranks `size` ranks make; ConfigError unless it divides them."""
+    if size % ranks_per_point:
+        raise ConfigError("map.ranks_per_point", f"must divide the {size} MPI ranks, got {ranks_per_point}")
+    return size // ranks_per_point
 
 
 def groups(comm, ranks_per_point):
     """(group communicator, how many groups): comm split into blocks of consecutive ranks."""
-    if comm.size % ranks_per_point:
-        raise ConfigError("map.ranks_per_point", f"must divide the {comm.size} MPI ranks, got {ranks_per_point}")
-    return comm.Split(comm.rank // ranks_per_point, comm.rank), comm.size // ranks_per_point
+    count = group_count(comm.size, ranks_per_point)
+    return comm.Split(comm.rank // ranks_per_point, comm.rank), count
 
 
 class Dispenser:
@@ -88,14 +107,16 @@ class Dispenser:
 
 
 def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
-    """Run the points of cfg.map not in `done` (finished, or outside the chunk asked for), each group of
-    map.ranks_per_point ranks taking the next one as it comes free; on_level(point) as a point starts, after
-    each of its levels and as it ends (point.done). Returns the Points this group ran."""
+    """Run the points of cfg.map, each group of map.ranks_per_point ranks taking the next one as it comes
+    free; `done`: the points not to run (finished, or outside the chunk asked for), or a mapping of point to
+    None (not to run) or to the levels it has (it goes on after them). on_level(point) as a point starts,
+    after each of its levels and as it ends (point.done). Returns the Points this group ran."""
     group, count = groups(comm, cfg.map.ranks_per_point)
-    skipped = set(done)
-    todo = [k for k in range(len(cfg.map.studies)) if k not in skipped]
+    done = done if isinstance(done, dict) else dict.fromkeys(done)
+    todo = [k for k in range(len(cfg.map.studies)) if done.get(k, []) is not None]
     with jit_cache.kept(), meshes.kept(), registry.checked_once():
-        return [run_point(Point(k, cfg.map.values[k], cfg.map.studies[k], group), on_level, monitor)
+        return [run_point(Point(k, cfg.map.values[k], cfg.map.studies[k], group, before=list(done.get(k) or [])),
+                          on_level, monitor)
                 for k in Dispenser(todo, comm, group, count)]
 
 
@@ -113,9 +134,11 @@ def run_point(point, on_level=None, monitor=None):
                 recording.append(err)
                 raise
 
-    record()
+    record(list(point.before))
+    if not point.taken:
+        return point
     try:
-        point.levels = refinement.run(point.cfg, record, point.comm, monitor)
+        point.levels = refinement.run(point.cfg, record, point.comm, monitor, done=point.before)
     except Exception as err:
         if recording and err is recording[-1]:
             raise

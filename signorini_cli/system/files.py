@@ -2,6 +2,7 @@
 output folder can be made and written before a study starts; a C library's failed write as an OSError."""
 import errno
 import os
+import sys
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -61,25 +62,48 @@ def overwrite(path, text):
         f.write(text)
 
 
-def unwritable(folder):
+def unwritable(folder, tries=10):
     """None when `folder` (and its missing parents) can be made and a file written in it, else one line
-    naming the path at fault. Leaves nothing behind: folders it made are removed again."""
+    naming the path at fault. Leaves nothing behind: folders it made are removed again while empty. Another
+    run may make, fill or remove the same folders meanwhile (a map's chunks starting together): a folder
+    that vanished under the probe is probed again."""
     folder = Path(os.path.abspath(folder))
-    existing = next(p for p in (folder, *folder.parents) if os.path.lexists(p))
-    if not existing.is_dir():
-        return f"{existing} is not a folder"
+    for _ in range(tries):
+        existing = next(p for p in (folder, *folder.parents) if os.path.lexists(p))
+        if not existing.is_dir():
+            if os.path.lexists(existing):
+                return f"{existing} is not a folder"
+            continue  # removed since it was seen
+        problem = _probe(folder, _missing(folder, existing))
+        if problem != "vanished":
+            return problem
+    return f"{folder}: cannot write there: other runs keep making and removing it"
+
+
+def _probe(folder, missing):
+    """Make the missing folders and a file in `folder`, then remove what was made: None, one line, or
+    'vanished' when a folder was removed by another run meanwhile."""
     made = []
     try:
-        for missing in _missing(folder, existing):
-            missing.mkdir()
-            made.append(missing)
+        for path in missing:
+            try:
+                path.mkdir()
+                made.append(path)
+            except FileExistsError:
+                if not path.is_dir():
+                    raise
         with tempfile.TemporaryFile(dir=folder):
             pass
+    except FileNotFoundError:
+        return "vanished"
     except OSError as err:
         return f"{err.filename or folder}: cannot write there: {err.strerror}"
     finally:
         for path in reversed(made):
-            path.rmdir()
+            try:
+                path.rmdir()
+            except OSError:  # another run wrote into it, or removed it
+                break
     return None
 
 
@@ -100,31 +124,35 @@ def library_writes(path):
     """Within: a C library writing `path` (HDF5 through dolfinx's XDMFFile) prints its diagnostics into memory
     instead of onto stderr, and its failure (a RuntimeError) is an OSError naming `path`: ENOSPC when the disk
     holds no free block, else EIO with the library's last line."""
-    with _stderr_in_memory() as printed:
+    with stderr_in_memory() as printed:
         try:
             yield
         except RuntimeError as err:
             full = os.statvfs(Path(path).parent).f_bavail == 0
             code = errno.ENOSPC if full else errno.EIO
-            reason = os.strerror(code) if full else f"{os.strerror(code)}: {str(err).strip() or printed()}"
+            lines = printed().strip().splitlines()
+            last = lines[-1].strip() if lines else ""
+            reason = os.strerror(code) if full else f"{os.strerror(code)}: {str(err).strip() or last}"
             raise OSError(code, reason, str(path)) from None
 
 
 @contextmanager
-def _stderr_in_memory():
-    """Within: descriptor 2 writes into an anonymous file in memory (not onto a full disk); yields a function
-    giving its last line."""
+def stderr_in_memory():
+    """Within: descriptor 2 (sys.stderr too, and the programs started meanwhile) writes into an anonymous
+    file in memory (not onto a full disk); yields a function giving what was written."""
     memory = os.memfd_create("stderr")
+    sys.stderr.flush()
     saved = os.dup(2)
     os.dup2(memory, 2)
 
-    def last_line():
+    def printed():
+        sys.stderr.flush()
         os.lseek(memory, 0, os.SEEK_SET)
-        lines = os.read(memory, 1 << 20).decode(errors="replace").strip().splitlines()
-        return lines[-1].strip() if lines else ""
+        return os.read(memory, 1 << 20).decode(errors="replace")
     try:
-        yield last_line
+        yield printed
     finally:
+        sys.stderr.flush()
         os.dup2(saved, 2)
         for fd in (saved, memory):
             os.close(fd)

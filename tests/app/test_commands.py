@@ -8,7 +8,7 @@ import yaml
 
 from signorini_cli import config, studies
 from signorini_cli.app import cli, commands
-from signorini_cli.record import results
+from signorini_cli.record import csvfile, results
 from conftest import BASE, merge
 
 
@@ -103,8 +103,10 @@ def test_report_partial_study(make_config, capsys):
     assert out.startswith("study t: 2 of 3 levels (partial study)")
     assert out.splitlines()[2].split()[-2:] == ["error", "rate"] and "wrote into" in out
     table = (folder / "rates.md").read_text().splitlines()
-    # comment, header, rule, 2 levels; h = 1.41/N is left out, so ε (= h) follows N
-    assert len(table) == 1 + 2 + 2 and table[-1].startswith("| 8 | 1.77e-01 |")
+    # comment, header, rule, 2 levels; h = 1.41/N is left out, so ε (= h) follows N; then the recorded verdict
+    assert table[4].startswith("| 8 | 1.77e-01 |") and table[5:7] == ["", "| norm | observed | interval | "
+                                                                          "proven | verdict | why |"]
+    assert "too few levels: 2 converged in the fit, 3 needed" in " ".join(out.split())  # wrapped at 120
     assert r"\toprule" in (folder / "rates.tex").read_text()
     for name in ("convergence", "work_precision", "newton"):
         assert (folder / f"{name}.png").stat().st_size > 0 and (folder / f"{name}.pdf").exists()
@@ -142,6 +144,38 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert r"\label{tab:compare}" in (compared / "compare.tex").read_text() and (compared / "compare.md").exists()
     assert cli.main(["compare", *folders, "--label", "one"]) == cli.EXIT_BAD_INPUT
     assert "--label: give one per study" in capsys.readouterr().err
+
+
+def test_report_shows_the_verdict_run_recorded(tmp_path, capsys):
+    """report redraws a study with the verdict its run decided: the same block on the terminal, the same
+    rates.md (verdict lines included)."""
+    path = write(tmp_path, output={"plots": False}, mesh={"refinements": [4, 8, 16]})
+    assert cli.main(["run", path]) == cli.EXIT_OK
+    ran = capsys.readouterr().out
+    folder = tmp_path / "out" / "t"
+    written = (folder / "rates.md").read_text()
+    (folder / "rates.md").unlink()
+    assert cli.main(["report", str(folder), "--no-plots"]) == cli.EXIT_OK
+    reported = capsys.readouterr().out
+    block = ran[ran.index("verification:"):ran.index("wrote")]
+    assert "agrees" in block and block in reported
+    assert (folder / "rates.md").read_text() == written
+
+
+def test_compare_shows_the_rate_run_shows(make_config, tmp_path):
+    """The same study's rate in summary.csv (the verdict's) and in compare.csv: one fit, over the study's own
+    verification.fit_levels (here 2, not the default 3)."""
+    for k in (2, 3):
+        cfg = make_config(study=f"fit{k}", mesh={"refinements": [4, 8, 16]}, verification={"fit_levels": k})
+        results.write(studies.study_of(cfg, studies.run_study(cfg)))
+    folders = [tmp_path / "results" / f"fit{k}" for k in (2, 3)]
+    assert cli.main(["compare", *map(str, folders), "--output", str(tmp_path / "c")]) == cli.EXIT_OK
+    fits = {row["study"]: row["L2_fit"] for row in csvfile.read(tmp_path / "c" / "compare.csv")}
+    for k, folder in zip((2, 3), folders):
+        (l2,) = [row for row in csvfile.read(folder / "summary.csv") if row["name"] == "L2"]
+        assert fits[f"fit{k}"] == l2["observed_rate"]
+    assert fits["fit2"] != fits["fit3"]
+    assert "each study's last verification.fit_levels levels" in (tmp_path / "c" / "compare.tex").read_text()
 
 
 @pytest.mark.parametrize("labels", [["X", "X"], None])

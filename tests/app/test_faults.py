@@ -89,6 +89,17 @@ def test_refused_after_the_folder_was_made_leaves_nothing(tmp_path, capsys):
     assert tree(tmp_path) == before
 
 
+def test_data_refused_once_under_way_leaves_nothing(tmp_path, capsys):
+    """Data found not finite as the first level is built (sin(r)/r at the origin): exit 2, one line, and no
+    file behind (an empty rates.csv, study.h5 and a failed status made the corrected config need --force)."""
+    config, out = write_config(tmp_path, problem={"exact": "sin(sqrt(x*x+y*y))/sqrt(x*x+y*y)"}), tmp_path / "out"
+    assert cli.main(["run", config, "--output", str(out), "--quiet"]) == cli.EXIT_BAD_INPUT
+    assert capsys.readouterr().err.startswith(f"signorini: error: {config}: problem.exact: ")
+    assert not out.exists()
+    fixed = write_config(tmp_path)
+    assert cli.main(["run", fixed, "--output", str(out), "--quiet"]) == cli.EXIT_OK  # no --force needed
+
+
 # --- class 2: a full disk mid-study --------------------------------------------------------------
 
 def test_full_disk_mid_study_same_levels_and_status(tmp_path, monkeypatch, capsys):

@@ -72,7 +72,8 @@ def test_force_starts_over(tmp_path):
     study = old_study(tmp_path)
     assert cli.main(["run", write_config(tmp_path), "--force", "--quiet"]) == cli.EXIT_OK
     assert sorted(p.name for p in study.iterdir()) == ["notes.txt", "rates.csv", "rates.md", "rates.tex",
-                                                       "status.txt", "study.h5", "summary.csv", "work_precision.csv"]
+                                                       "solution.h5", "status.txt", "study.h5", "summary.csv",
+                                                       "work_precision.csv"]
     assert (study / "notes.txt").read_text() == "old\n"  # not a result of the study's: kept
 
 

@@ -1,6 +1,7 @@
 """The expression translator accepts its grammar and nothing else."""
 import math
 import re
+import time
 
 import numpy as np
 import pytest
@@ -162,10 +163,46 @@ def test_definitions_inline_in_order():
 
 
 @pytest.mark.parametrize("texts, message", [
-    pytest.param({"t": "r*2", "r": "x"}, "unknown name 'r'", id="later-name-first"),
+    pytest.param({"t": "r*2", "r": "x"}, "t: unknown name 'r'", id="later-name-first"),
     pytest.param({"x": "y"}, "'x': a definition cannot redefine the variable x", id="redefine-variable"),
     pytest.param({"sin": "x"}, "'sin': a definition's name must be a new identifier", id="function-name"),
 ])
 def test_definitions_rejected(texts, message):
     with pytest.raises(expressions.ExpressionError, match="^" + re.escape(message)):
         expressions.definitions(texts, XY)
+
+
+def chain(count, text):
+    """count definitions a1 .. a<count>, each `text` with K the previous one's name (a0 = x)."""
+    return {f"a{k}": text.replace("K", f"a{k - 1}" if k > 1 else "x") for k in range(1, count + 1)}
+
+
+@pytest.mark.parametrize("texts, exact, message", [
+    # each definition alone is small; inserted, they exceed the limits a literal expression has
+    pytest.param(chain(1000, "sin(K)"), "a1000",
+                 "a61: nested too deeply with its definitions inserted (depth 62, at most 61)", id="1000-nested"),
+    pytest.param(chain(30, "K*K"), "a30", "a10: too large with its definitions inserted (2047 terms",
+                 id="30-doublings"),
+    pytest.param({"a": "1000"}, "x*exp(a)", "'exp(a)' cannot be evaluated: math range error", id="exp-overflow"),
+    pytest.param({"p": "50+51"}, "x**p", "exponent larger than 100 in 'x**p'", id="exponent-sum"),
+    pytest.param({"𝑥": "0.5"}, "x", "'𝑥': a definition's name must be ASCII", id="non-ascii-name"),
+    pytest.param({}, "𝑥*(1-y)", "non-ASCII character '𝑥' (U+1D465)", id="non-ascii-expression"),
+])
+def test_definitions_hold_the_limits_of_literal_expressions(texts, exact, message):
+    with pytest.raises(expressions.ExpressionError, match="^" + re.escape(message)):
+        expressions.parse(exact, XY, expressions.definitions(texts, XY))
+
+
+def test_definitions_are_shared_not_copied():
+    """A definition used twice is one subtree, used twice: parsing stays linear in the definitions."""
+    defined = expressions.definitions({"s": "sin(x)", "t": "s*s"}, XY)
+    tree = expressions.parse("t + s", XY, defined).tree
+    assert tree.left.left is tree.left.right is tree.right is defined["s"].tree
+
+
+def test_thirty_doublings_are_refused_at_once():
+    """Counting the inserted size visits each shared node once (it took minutes when definitions were copied)."""
+    start = time.perf_counter()
+    with pytest.raises(expressions.ExpressionError, match="too large"):
+        expressions.definitions(chain(30, "K*K"), XY)
+    assert time.perf_counter() - start < 1.0  # linear: a few ms; 1 s leaves the shared machine its slack

@@ -2,17 +2,20 @@
 module of config/ compares a unit's name, every registered unit has the interface units.py states, and the cut
 of the config into modules left every shipped config resolving and hashing as before."""
 import ast
+import dataclasses
 import hashlib
 import json
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
 import yaml
 
 from signorini_cli import config
-from signorini_cli.config import units
+from signorini_cli.config import schema, units
+from signorini_cli.config import validators as check
 from conftest import BASE, merge
 
 pytestmark = pytest.mark.fast
@@ -21,10 +24,11 @@ ROOT = Path(__file__).resolve().parents[2]
 CONFIG = ROOT / "signorini_cli" / "config"
 NAMES = set(units.PDES) | set(units.METHODS) | set(units.STUDY_TYPES)
 # what units.py's docstring says each kind of unit has
-INTERFACE = {"problem.pde": ("NAME", "KEYS", "SECTION", "DEGREES", "VI", "problem", "check_config"),
-             "problem.method": ("NAME", "PDES", "SECTION", "check_config"),
-             "study_type": ("NAME", "POINTS", "VI", "GEOMETRY", "FIELDS", "DEGREES", "UNUSED", "LIMIT", "SECTION",
-                            "check_config")}
+INTERFACE = {"problem.pde": ("NAME", "DOC", "KEYS", "SECTION", "DEGREES", "VECTOR", "VI",
+                             "problem", "check_config"),
+             "problem.method": ("NAME", "DOC", "PDES", "SECTION", "UNUSED", "check_config"),
+             "study_type": ("NAME", "DOC", "POINTS", "VI", "GEOMETRY", "FIELDS", "DEGREES", "UNUSED", "LIMIT",
+                            "SECTION", "check_config")}
 
 
 def load(changes):
@@ -75,7 +79,8 @@ def digest(data):
 
 
 # digests of the resolved dict and the hashed settings of every shipped config (a map's points too), computed
-# before the config was cut into modules; problem.method was added after them, at its default penalty
+# before the config was cut into modules; problem.method was added after them, at its default penalty, and the
+# P2 configs were recomputed when their contact_quadrature default became the exact rule
 SHIPPED = json.loads((Path(__file__).parent / "shipped_configs.json").read_text())
 
 
@@ -128,3 +133,51 @@ def test_check_loads_no_dolfinx():
             "config.load('configs/limit/total.yaml'); print('dolfinx' in sys.modules, 'petsc4py' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Nitsche:
+    """The section of a method registered for the test below."""
+    theta: float = schema.key(1.0, "1 | 0 | -1")
+    gamma0: float = schema.key(1.0, "> 0")
+
+
+def nitsche_section(raw, path):
+    check.keys(raw, path, optional=schema.keys_of(Nitsche))
+    s = check.Section(raw, path, Nitsche)
+    if s.number("theta") not in (1.0, 0.0, -1.0):
+        raise config.ConfigError(s.at("theta"), f"must be 1, 0 or -1, got {s.get('theta')}")
+    return Nitsche(s.number("theta"), s.number("gamma0", positive=True))
+
+
+@pytest.fixture
+def nitsche(monkeypatch):
+    """A method with its own section registered as a module of config/ would be: a namespace and one line."""
+    unit = types.SimpleNamespace(NAME="nitsche", DOC="", PDES=("poisson",), UNUSED={"epsilon": ""},
+                                 SECTION=schema.UnitSection("nitsche", Nitsche, "{theta, gamma0}"),
+                                 section=nitsche_section, check_config=lambda cfg, raw: cfg)
+    monkeypatch.setitem(units.METHODS, "nitsche", unit)
+
+
+def test_a_method_registers_its_own_section(nitsche):
+    cfg = load({"epsilon": None, "problem": {"method": "nitsche"}, "nitsche": {"theta": -1}})
+    assert (cfg.problem.method, cfg.nitsche) == ("nitsche", Nitsche(theta=-1.0))
+    resolved = config.to_dict(cfg)
+    assert resolved["nitsche"] == {"theta": -1.0, "gamma0": 1.0} and "epsilon" not in resolved
+    assert config.fingerprint(config.from_dict(resolved)) == config.fingerprint(cfg)  # reads back
+    assert config.fingerprint(cfg) != config.fingerprint(load({"epsilon": None, "problem": {"method": "nitsche"}}))
+    assert "nitsche.gamma0" in config.key_paths() and "# nitsche:" in config.template()
+
+
+@pytest.mark.parametrize("changes, message", [
+    pytest.param({"nitsche": {"theta": 1}}, "nitsche: only meaningful with problem.method: nitsche", id="no-method"),
+    pytest.param({"problem": {"method": "nitsche"}}, "epsilon: not used by problem.method nitsche", id="unused"),
+    pytest.param({"epsilon": None, "problem": {"method": "nitsche", "pde": "elasticity",
+                                               "exact": ["x", "y"]}},
+                 r"problem.method: nitsche is not built for pde: elasticity \(it is for poisson\)", id="pde"),
+    pytest.param({"epsilon": None, "problem": {"method": "nitsche"}, "nitsche": {"theta": 2}},
+                 "nitsche.theta: must be 1, 0 or -1, got 2", id="section-checked"),
+])
+def test_a_registered_method_refuses_with_the_key(nitsche, changes, message):
+    with pytest.raises(config.ConfigError, match="^" + message):
+        load(changes)

@@ -70,6 +70,22 @@ def test_plot_slopes_read_fit_levels():
     assert four.axes[0].get_legend().get_texts()[0].get_text() != "L²  (fit 1.00)"
 
 
+def test_figure_fit_is_the_verdicts_rate_also_with_a_log_factor(make_config):
+    # alpha = 3 (a bound with |ln h|): the legend's fit and the verdict's rate are one slope, the plain one
+    import math
+    from signorini_cli.analysis import verdict
+    from signorini_cli.solve.solver import Outcome
+    from signorini_cli.studies import Level
+    from signorini_cli.studies.level import rate_table
+    outcome = Outcome(True, "CONVERGED_FNORM_ABS", 5, 5, (1.0,))
+    levels = [Level(k, round(1 / h), h, 100, h, outcome, {"L2": h**2 * -math.log(h)}, 1.0) for k, h in enumerate(H)]
+    (l2,) = verdict.summarize(make_config(alpha=3.0), levels).norms
+    with plots.styled():
+        fig = plots.convergence(rate_table(levels), {"L2": 2.0}, fit_levels=3)
+    assert fig.axes[0].get_legend().get_texts()[0].get_text().startswith(f"L²  (fit {l2.observed:.2f}")
+    assert round(l2.observed, 2) != round(l2.log_corrected, 2)  # the other fit would show another number
+
+
 def test_many_norms_two_per_panel_and_per_norm_figures(tmp_path):
     rows = synthetic({"L2": 2.0, "H1": 1.0, "L2_gamma_c": 1.5})
     with plots.styled():

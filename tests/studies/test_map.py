@@ -2,6 +2,7 @@
 (serial and on 2 ranks), map.csv the same on 1 and 2 ranks, a failing point recorded while the map goes
 on, SIGTERM then --resume giving the map.csv of an uninterrupted run, chunks and report."""
 import csv
+import math
 import os
 import signal
 import subprocess
@@ -110,11 +111,11 @@ def test_points_are_their_single_studies(tmp_path_factory, grid, refinements):
     comm = MPI.COMM_WORLD
     folder = Path(comm.bcast(str(tmp_path_factory.mktemp("map")) if comm.rank == 0 else None))
     cfg = config.loads(yaml.safe_dump(map_raw(folder / "world", grid, refinements), sort_keys=False))
-    assert maps.run(cfg, quiet=True, comm=comm) == 0
+    assert maps.exit_status(maps.run(cfg, quiet=True, comm=comm), comm) == 0
     check_points_alone(cfg, comm)
     if comm.rank == 0:
         alone = config.loads(yaml.safe_dump(map_raw(folder / "self", grid, refinements), sort_keys=False))
-        assert maps.run(alone, quiet=True, comm=MPI.COMM_SELF) == 0
+        assert maps.exit_status(maps.run(alone, quiet=True, comm=MPI.COMM_SELF), MPI.COMM_SELF) == 0
         assert map_rows(folder / "self" / "m") == map_rows(folder / "world" / "m")
         assert len(map_rows(folder / "world" / "m")) == len(cfg.map.studies)
 
@@ -214,3 +215,21 @@ def test_jobs_run_under_mpirun(tmp_path):
     done = subprocess.run([SIGNORINI, "run", jobs, "--quiet", "--set", "map.jobs=2"], env=env, timeout=600)
     assert done.returncode == 0
     assert map_rows(tmp_path / "jobs" / "m") == map_rows(tmp_path / "serial" / "m")
+
+
+@pytest.mark.fast
+def test_map_row_shows_the_rate_run_and_compare_show(make_config):
+    # alpha = 3: the proven L2 rate carries |ln h|; the map's rate is still the plain slope, the verdict's,
+    # and the log-corrected fit is its own column
+    from signorini_cli.analysis import rates, verdict
+    from signorini_cli.solve.solver import Outcome
+    cfg = make_config(alpha=3.0)
+    h = [math.sqrt(2) / n for n in (8, 16, 32, 64)]
+    e = [x**2 * -math.log(x) for x in h]
+    outcome = Outcome(True, "CONVERGED_FNORM_ABS", 5, 5, (1.0,))
+    levels = [studies.Level(k, n, x, 100, x, outcome, {"L2": y}, 1.0)
+              for k, (n, x, y) in enumerate(zip((8, 16, 32, 64), h, e))]
+    row = rate_map.row(cfg, {}, levels, "complete", ())
+    (l2,) = verdict.summarize(cfg, levels).norms
+    assert row["rate_L2"] == l2.observed == rates.slope(h, e)
+    assert row["rate_L2_log"] == l2.log_corrected == rates.fitted(h, e, [True] * 4, log_factor=True)
