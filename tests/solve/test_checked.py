@@ -6,7 +6,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from signorini_cli import studies
-from signorini_cli.solve import check, strategies
+from signorini_cli.solve import check, solver, strategies
 from conftest import solved_problem
 
 # options whose iterates are no Newton steps; each made the success test pass far from the root (the
@@ -180,3 +180,13 @@ def test_failed_check_leaves_snes_usable(make_config, monkeypatch):
         saved.destroy()
         problem.u_h.x.array[:] = 0.0
         assert newton.run(cfg.epsilon(0.125)).converged
+
+
+@pytest.mark.fast
+def test_amg_lag_by_dimension(make_config):
+    """CG + AMG sets its preconditioner up every 2nd Newton step in 2-D and every 3rd in 3-D (a nested 3-D level's
+    3 steps: one set-up); a direct solve is never lagged (a lagged LU is a chord method)."""
+    cfg = make_config().solver
+    assert solver.petsc_options(cfg, 2, linear="iterative")["snes_lag_preconditioner"] == 2
+    assert solver.petsc_options(cfg, 3, linear="iterative")["snes_lag_preconditioner"] == 3
+    assert "snes_lag_preconditioner" not in solver.petsc_options(cfg, 2, linear="direct")
