@@ -100,7 +100,7 @@ def report_study(args):
             raise ConfigError("--digits", f"must be >= 1, got {digits}")
         columns = config.table_columns(args.columns, "--columns") if args.columns else None
         figure = {"width": config.length(args.width, "--width") if args.width else None,
-                  "per_norm": args.per_norm}
+                  "per_norm": args.per_norm, "font": args.font or "cm"}
         folder = Path(args.output or study.folder)
         beside = args.columns and folder.resolve() == study.folder.resolve()
         written, summary = [], recorded_verdict(study, cfg)
@@ -144,7 +144,8 @@ def report_map(args):
     tables are refused, a map has none of them."""
     try:
         given = [flag for flag, value in (("--digits", args.digits), ("--columns", args.columns),
-                                          ("--width", args.width), ("--per-norm", args.per_norm)) if value]
+                                          ("--width", args.width), ("--per-norm", args.per_norm),
+                                          ("--font", args.font)) if value]
         if given:
             raise ConfigError(given[0], "applies to a study's tables and figures; a map's report has no such option")
         text = maps.report(args.path, not args.no_plots, args.output) if MPI.COMM_WORLD.rank == 0 else None
@@ -188,7 +189,7 @@ def compare(args):
         twice = next((label for label in labels if labels.count(label) > 1), None)
         if twice is not None:  # one label would stand for two studies in the legend and the table
             raise ConfigError("--label", f"{twice!r} names two of the studies; give each its own label")
-        folder = Path(args.output) if args.output else found[0].folder.parent / "compare"
+        folder = Path(args.output) if args.output else found[0].folder.parent / compare_folder(labels)
         rows = {f"{label} {part}".strip(): part_rows for label, study in zip(labels, found)
                 for part, part_rows in compared(study).items()}
         fit_levels = {f"{label} {part}".strip(): _fit_levels(study) for label, study in zip(labels, found)
@@ -201,6 +202,15 @@ def compare(args):
     if MPI.COMM_WORLD.rank == 0:
         emit([tables.summary_table(rows, fit_levels), tables.wrote((p.name for p in written), folder)])
     return EXIT_OK
+
+
+def compare_folder(labels):
+    """compare-<label>-<label>...: a comparison's default folder named for its inputs, so that the next
+    comparison of other studies does not write over it (long lists cut, a hash keeps them apart)."""
+    slug = "-".join(re.sub(r"[^A-Za-z0-9_.]+", "_", label).strip("_") for label in labels)
+    if len(slug) > 60:
+        slug = slug[:51] + "-" + hashlib.sha256("\0".join(labels).encode()).hexdigest()[:8]
+    return "compare-" + slug
 
 
 def _fit_levels(study):
@@ -356,6 +366,8 @@ def init(args):
             Path(args.file).write_text(text)
     except OSError as err:
         return fail(args.file, err)
+    if MPI.COMM_WORLD.rank == 0:
+        emit([f"wrote {args.file}: every config key at its default, each with a one-line comment"])
     return EXIT_OK
 
 

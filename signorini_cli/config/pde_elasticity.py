@@ -11,7 +11,7 @@ from .schema import COORDINATES, FACES, ConfigError, Problem, UnitSection, key, 
 NAME = "elasticity"
 DOC = "docs/elasticity.md"  # how the reference and `signorini init` describe it beside its name
 KEYS = ("exact", "gap", "normal", "define", "hertz_radius")  # the problem keys it takes (besides pde and method)
-DEGREES = (1, 2)  # the element degrees it has (P2 as the scalar problem has it: 2-D)
+DEGREES = (1, 2)  # the element degrees it has
 VECTOR = True  # u has d components: d dofs per node, d × d Jacobian blocks
 VI = True  # its Signorini problem: u·n <= g0 as bounds on one component (problems/elastic_vi.py)
 
@@ -107,15 +107,15 @@ def check_config(cfg, raw):
     return dataclasses.replace(cfg, verification=dataclasses.replace(v, measures=measures))
 
 
-def check_vi(problem, kind):
+def check_vi(problem, study):
     """The Signorini problem of elasticity is the physical one (f = 0, driven by the gap): no manufactured
     solution, so no total error."""
-    if kind == "total_error":
-        raise ConfigError("study_type", "total_error measures u_S − u_h: pde: elasticity has no manufactured "
+    if study.LIMIT_ERROR:
+        raise ConfigError("study_type", f"{study.NAME} measures u_S − u_h: pde: elasticity has no manufactured "
                                         "Signorini solution (signorini and epsilon_sweep run it)")
     if problem.exact is not None:
-        raise ConfigError("problem.exact", f"study_type {kind} with pde: elasticity solves the physical problem "
-                                           "(f = 0, driven by problem.gap): give no exact solution")
+        raise ConfigError("problem.exact", f"study_type {study.NAME} with pde: elasticity solves the physical "
+                                           "problem (f = 0, driven by problem.gap): give no exact solution")
 
 
 def _check_normal_of_vi(cfg):

@@ -73,11 +73,11 @@ def check_config(cfg, raw):
     return cfg
 
 
-def check_vi(problem, kind):
+def check_vi(problem, study):
     """The ε → 0 studies need the Signorini problem: f (and u_S on Γ_D), contact data g = 0."""
     if problem.exact is not None and not EXACT_SOLVES[problem.exact_solves].signorini:
-        raise ConfigError("problem.exact_solves", f"study_type {kind} needs a Signorini solution: "
+        raise ConfigError("problem.exact_solves", f"study_type {study.NAME} needs a Signorini solution: "
                                                   "set exact_solves: signorini, or give f alone")
     if problem.g is not None:
-        raise ConfigError("problem.g", f"study_type {kind} needs g = 0: the ε → 0 limit of "
+        raise ConfigError("problem.g", f"study_type {study.NAME} needs g = 0: the ε → 0 limit of "
                                        "ε∂_n u + [u]_+^α = g is a Signorini problem only then")

@@ -250,7 +250,7 @@ class Output:
 @dataclass(frozen=True)
 class Element:
     """The finite element of the compliance problem: Lagrange of degree 1 or 2."""
-    degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature exact or a Gauss rule)")
+    degree: int = key(1, "1 | 2 (2: refinement studies, contact_quadrature exact or a Gauss rule)")
 
 
 @dataclass(frozen=True)

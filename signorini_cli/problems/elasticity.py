@@ -8,10 +8,10 @@ the symmetric gradient. With the manufactured data the two Γ_C conditions add u
     ∫ σ(u_h):ε(v) + (1/ε)∫_Γc [w_h]_+^α (v·n)
         = ∫ f·v + ∫_Γc σ(u_ex)n·v + (1/ε)∫_Γc [w_ex]_+^α (v·n),
 
-w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine) or, in 2-D, quadratic (P2, g0 at most
-quadratic), so contact.ContactTerm integrates the penalty exactly (P2: each segment cut at the zeros of the
-quadratic, as for the scalar problem), and the kinked data [w_ex]_+^α by its adaptive rules when n is one
-vector on all of Γ_C."""
+w = u·n − g0. On a flat Γ_C facet w_h is linear (P1, g0 affine) or quadratic (P2, g0 at most quadratic),
+so contact.ContactTerm integrates the penalty exactly (P2: each facet cut at the zeros of the quadratic, as
+for the scalar problem), and the kinked data [w_ex]_+^α by its adaptive rules when n is one vector on all
+of Γ_C."""
 from contextlib import ExitStack
 from dataclasses import dataclass
 

@@ -53,7 +53,7 @@ def check_posed(cfg, domain, u_exact, eps_value):
     found = POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, coarsest=coarsest)
     if _passed is not None:
         found = _passed.setdefault(key, found)
-    low = (compliance.QUADRATURE_DEGREE, element.error_degree(cfg.element.degree, domain.h))
+    low = (compliance.QUADRATURE_DEGREE, element.error_degree(cfg.element.degree, domain.h, domain.mesh.topology.dim))
     return low if found is None else found.degrees(domain.h, *low)
 
 

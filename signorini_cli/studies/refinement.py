@@ -38,7 +38,7 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
             previous = strategies.Handoff(levels[-1].solution)
         if on_level is not None:  # it sees the level's u_h (Level.solution) before it is let go
             on_level(levels)
-        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
+        levels[-1].solution, levels[-1].scene = None, None  # only the last converged u_h is kept (nested iteration)
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels
@@ -126,7 +126,8 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
         errors = problem_module.errors(u_h, forms.u_exact, domain.h, domain.quadrature[1]) \
             if forms.u_exact is not None else {}
-        level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
+        level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h,
+                      scene=(domain, forms))
         if verifier is not None:  # Γ_C measures, reference errors
             verifier.measure(level, domain, u_h, forms)
     reference_s = level.extra.get("reference_time_s") or 0.0  # its own column, in neither time_s nor t_errors

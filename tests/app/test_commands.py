@@ -101,7 +101,7 @@ def test_report_partial_study(make_config, capsys):
     assert cli.main(["report", str(folder), "--digits", "2"]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert out.startswith("study t: 2 of 3 levels (partial study)")
-    assert out.splitlines()[2].split()[-2:] == ["error", "rate"] and "wrote into" in out
+    assert out.splitlines()[2].split()[-3:] == ["error", "rate", "time"] and "wrote into" in out
     table = (folder / "rates.md").read_text().splitlines()
     # comment, header, rule, 2 levels; h = 1.41/N is left out, so ε (= h) follows N; then the recorded verdict
     assert table[4].startswith("| 8 | 1.77e-01 |") and table[5:7] == ["", "| norm | observed | interval | "
@@ -136,7 +136,7 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert [line.split()[0] for line in out.splitlines()[2:4]] == ["theta1", "theta10"]  # under 2 header lines
-    compared = tmp_path / "results" / "compare"
+    compared = tmp_path / "results" / "compare-theta1-theta10"  # named for its inputs: another compare goes beside
     assert (compared / "compare_convergence.pdf").exists()
     table = (compared / "compare.csv").read_text().splitlines()
     assert table[0].startswith("study,levels,finest_h,time_s,L2_finest,L2_fit,H1_finest,H1_fit")
