@@ -111,7 +111,8 @@ def test_default_check_sets_up_no_preconditioner(make_config, monkeypatch):
 @pytest.mark.parametrize("linear", ["direct", "iterative"])
 def test_error_bound_bounds_the_exact_correction(make_config, monkeypatch, linear):
     """Where the last two Newton steps give a bound (strategies.error_bound) the exact correction at the
-    iterate (a fresh KSP's) is below it (or at its round-off floor), the check would pass, and the check returns that bound without solving."""
+    iterate (a fresh KSP's) is below it (or at its round-off floor), the check would pass, and the check
+    returns that bound without solving."""
     cfg = make_config(mesh={"refinements": [32]}, solver={"linear": linear})
     problem = solved_problem(cfg, monkeypatch)
     with strategies.newton_for(cfg.solver, problem) as newton:
@@ -159,8 +160,8 @@ def test_alpha_1_sweep_is_checked(make_config, monkeypatch):
 
 
 def test_failed_check_leaves_snes_usable(make_config, monkeypatch):
-    """A check whose preconditioner, borrowed from SNES's own KSP, fails (a singular J: zero pivots) says so, and the next
-    solve on the same SNES (as ε-continuation would make) still converges."""
+    """A check whose preconditioner, borrowed from SNES's own KSP, fails (a singular J: zero pivots) says so, and
+    the next solve on the same SNES (as ε-continuation would make) still converges."""
     cfg = make_config(mesh={"refinements": [8]})
     problem = solved_problem(cfg, monkeypatch)
     with strategies.newton_for(cfg.solver, problem) as newton:
