@@ -16,17 +16,20 @@ CHECK_RTOL = 1e-3
 CHECK_MAX_IT = 30  # beyond this, B no longer fits J(u) (another active set): it is set up anew on J(u)
 
 
-def exact_correction(newton, options=None):
+def exact_correction(newton, options=None, refactor=False):
     """(delta, ||delta||, ||u||) for Newton's exact correction delta = J(u)^{-1} F(u) at the final iterate of
     `newton` (solver.NewtonSolver): to first order the algebraic error of u, whichever solver produced u. Solved
-    with SNES's own preconditioner (borrowed_solve), or with `options` in a fresh KSP. ||delta|| is inf (delta
-    None) when that linear solve fails."""
+    with SNES's own preconditioner (borrowed_solve), with `options` in a fresh KSP, or (`refactor`) by SNES's own
+    direct KSP factoring J(u) anew. ||delta|| is inf (delta None) when that linear solve fails."""
     b, delta = newton.b.duplicate(), newton.x.duplicate()
     with newton.phases("assemble_residual"):
         newton.assemble_residual(newton.x, b)  # leaves x in u, where the Jacobian is assembled
     with newton.phases("assemble_jacobian"):
         newton.assemble_jacobian(newton.A)
-    solved = borrowed_solve(newton, b, delta) if options is None else fresh_solve(newton, options, b, delta)
+    if refactor:
+        solved = refactored_solve(newton, b, delta)
+    else:
+        solved = borrowed_solve(newton, b, delta) if options is None else fresh_solve(newton, options, b, delta)
     b.destroy()
     norm = delta.norm() if solved else math.inf
     if not solved or not math.isfinite(norm):
@@ -57,6 +60,20 @@ def borrowed_solve(newton, b, delta):
     finally:
         pc.setReusePreconditioner(False)  # SNES sets it again at its next Jacobian (its lag)
         ksp.destroy()
+
+
+def refactored_solve(newton, b, delta):
+    """J delta = b by SNES's own KSP, its PC set up on J(u) (a direct solver's new numeric factorisation on the
+    symbolic one of the Newton steps). Whether solved."""
+    ksp = newton.snes.getKSP()
+    ksp.getPC().setReusePreconditioner(False)
+    ksp.setOperators(newton.A)
+    delta.set(0.0)
+    ksp.solve(b, delta)
+    if ksp.getConvergedReason() > 0:
+        return True
+    ksp.reset()  # a failed factorisation leaves MUMPS unusable for SNES's next solve
+    return False
 
 
 def fresh_solve(newton, options, b, delta):

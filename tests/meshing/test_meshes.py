@@ -135,8 +135,9 @@ def small(cfg):
 
 
 def measured(levels):
-    """Every error a level records: its own norms and the reference, successive and Γ_C errors."""
-    names = ("L2", "H1", "_gc", "_ref", "diff_", "energy", "err")
+    """Every error a level records: its own norms and the reference, successive and Γ_C errors; and, for the
+    data-only elastic studies (no exact solution), the contact force, measure and peak pressure."""
+    names = ("L2", "H1", "_gc", "_ref", "diff_", "energy", "err", "contact_force", "contact_measure", "pressure_max")
     rows = []
     for level in levels:  # a refinement Level, or an ε-sweep Point (its `differences` to the VI solution)
         found = dict(getattr(level, "errors", None) or {})

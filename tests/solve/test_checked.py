@@ -6,7 +6,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from signorini_cli import studies
-from signorini_cli.solve import check, strategies
+from signorini_cli.solve import check, solver, strategies
 from conftest import solved_problem
 
 # options whose iterates are no Newton steps; each made the success test pass far from the root (the
@@ -111,7 +111,8 @@ def test_default_check_sets_up_no_preconditioner(make_config, monkeypatch):
 @pytest.mark.parametrize("linear", ["direct", "iterative"])
 def test_error_bound_bounds_the_exact_correction(make_config, monkeypatch, linear):
     """Where the last two Newton steps give a bound (strategies.error_bound) the exact correction at the
-    iterate (a fresh KSP's) is below it (or at its round-off floor), the check would pass, and the check returns that bound without solving."""
+    iterate (a fresh KSP's) is below it (or at its round-off floor), the check would pass, and the check
+    returns that bound without solving."""
     cfg = make_config(mesh={"refinements": [32]}, solver={"linear": linear})
     problem = solved_problem(cfg, monkeypatch)
     with strategies.newton_for(cfg.solver, problem) as newton:
@@ -131,6 +132,7 @@ def test_error_bound_needs_two_contracting_full_steps():
     class Fake:
         linear, cfg = "direct", type("Cfg", (), {"inexact": False, "linear_rtol": 1e-10})()
         snes = type("Snes", (), {"last_steps": None})()
+        problem = type("Problem", (), {"contact": type("Contact", (), {"alpha": 2.0})()})()
     fake = Fake()
     assert strategies.error_bound(fake) is None
     fake.snes.last_steps = (0.6, 1.0, 1.0)
@@ -138,13 +140,28 @@ def test_error_bound_needs_two_contracting_full_steps():
     fake.snes.last_steps = (1e-12, 1e-9, 2.0)
     expected = (1e-3 / (1 - 1e-3) + strategies.LINEAR_ERROR["direct"]) * 1e-12 / 2.0
     assert strategies.error_bound(fake) == pytest.approx(expected, rel=1e-15)
+    fake.problem.contact.alpha = 1.5  # no quadratic convergence: no bound
+    assert strategies.error_bound(fake) is None
+    fake.problem.contact.alpha = 2.0
     fake.cfg.inexact = True
     assert strategies.error_bound(fake) is None
 
 
+def test_alpha_1_sweep_is_checked(make_config, monkeypatch):
+    """alpha = 1 (semismooth Newton): the ε-sweep's level where the last steps' bound passed at an iterate the
+    exact correction still moved (ε = 1e-5, N = 32) is checked, and an exact Newton step reaches the root."""
+    cfg = make_config(alpha=1.0, mesh={"refinements": [32]})
+    problem = solved_problem(cfg, monkeypatch)
+    with strategies.newton_for(cfg.solver, problem) as newton:
+        assert strategies.error_bound(newton) is None
+        for eps in (1e-3, 1e-4, 1e-5):
+            outcome = strategies.descend(newton, problem, eps, cfg.solver, eps * 10)
+            assert outcome.converged and outcome.correction <= strategies.EXACT_TOL
+
+
 def test_failed_check_leaves_snes_usable(make_config, monkeypatch):
-    """A check whose preconditioner, borrowed from SNES's own KSP, fails (a singular J: zero pivots) says so, and the next
-    solve on the same SNES (as ε-continuation would make) still converges."""
+    """A check whose preconditioner, borrowed from SNES's own KSP, fails (a singular J: zero pivots) says so, and
+    the next solve on the same SNES (as ε-continuation would make) still converges."""
     cfg = make_config(mesh={"refinements": [8]})
     problem = solved_problem(cfg, monkeypatch)
     with strategies.newton_for(cfg.solver, problem) as newton:
@@ -164,3 +181,13 @@ def test_failed_check_leaves_snes_usable(make_config, monkeypatch):
         saved.destroy()
         problem.u_h.x.array[:] = 0.0
         assert newton.run(cfg.epsilon(0.125)).converged
+
+
+@pytest.mark.fast
+def test_amg_lag_by_dimension(make_config):
+    """CG + AMG sets its preconditioner up every 2nd Newton step in 2-D and every 3rd in 3-D (a nested 3-D level's
+    3 steps: one set-up); a direct solve is never lagged (a lagged LU is a chord method)."""
+    cfg = make_config().solver
+    assert solver.petsc_options(cfg, 2, linear="iterative")["snes_lag_preconditioner"] == 2
+    assert solver.petsc_options(cfg, 3, linear="iterative")["snes_lag_preconditioner"] == 3
+    assert "snes_lag_preconditioner" not in solver.petsc_options(cfg, 2, linear="direct")
