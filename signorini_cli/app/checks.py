@@ -69,7 +69,8 @@ def _data(cfg, comm):
     domain = meshes.build(cfg.mesh, cfg.contact, cfg.mesh.levels[0], comm)
     eps_value = cfg.epsilon(domain.h)
     eps = fem.Constant(domain.mesh, eps_value)
-    u_exact = registry.problem_of(cfg).exact_solution(cfg, domain.mesh, eps) if cfg.problem.exact else None
+    u_exact = registry.problem_of(cfg).exact_solution(cfg, domain.mesh, eps) \
+        if cfg.problem.exact is not None else None
     registry.check_posed(cfg, domain, u_exact, eps_value)
 
 
