@@ -5,7 +5,8 @@ PY := $(VENV)/bin/python
 SIGNORINI := $(VENV)/bin/signorini
 STAMP := $(VENV)/.setup-done
 APT_PACKAGES := python3-dolfinx-real python3-gmsh python3-h5py python3-yaml python3-matplotlib python3-wheel \
-                python3-pytest python3-pytest-mpi python3-sympy python3-meshio python3-venv openmpi-bin
+                python3-pytest python3-pytest-mpi python3-sympy python3-meshio python3-venv openmpi-bin \
+                texlive-latex-base texlive-latex-recommended  # pdflatex, amsmath, graphicx; booktabs
 NP ?= 2
 # Open MPI refuses to run as root without these; harmless for other users.
 export OMPI_ALLOW_RUN_AS_ROOT := 1
@@ -33,7 +34,7 @@ demo: setup
 test: setup test-serial test-mpi
 
 test-serial: setup
-	$(PY) -m pytest -m "not mpi" -q
+	SIGNORINI_REQUIRE_LATEX=1 $(PY) -m pytest -m "not mpi" -q
 
 test-mpi: setup
 	$(MPIRUN) $(PY) -m pytest --with-mpi -m mpi -q -p no:cacheprovider

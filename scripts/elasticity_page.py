@@ -1,4 +1,5 @@
-"""`make elasticity`: run configs/elasticity (manufactured studies, the stiff case, Hertz contact) and write
+"""`make elasticity`: run configs/elasticity (manufactured studies, the stiff case, Hertz contact in 2-D and
+3-D, the Signorini limit, fields) and write
 docs/elasticity.md from the runs; `--bench` writes the elastic section of bench/results.md. Every number in
 those pages comes from here."""
 import argparse
@@ -11,22 +12,17 @@ import numpy as np
 from mpi4py import MPI
 
 import provenance
-from dolfinx import fem
 import signorini_cli
 from signorini_cli import config
-from signorini_cli.meshing import meshes
-from signorini_cli.problems import elasticity
 from signorini_cli.record import results
-from signorini_cli.solve import strategies
+from signorini_cli.report import tables
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs" / "elasticity"
 RUNS = ROOT / "results" / "elasticity"
 MANUFACTURED = ["square-alpha15.yaml", "square-alpha2.yaml", "square-alpha3.yaml", "cube-alpha15.yaml",
                 "cube-alpha2.yaml", "cube-alpha3.yaml", "half-disk-alpha2.yaml", "square-stiff.yaml"]
-HERTZ_SIZES = [0.1, 0.05, 0.025, 0.0125, 0.00625]  # uniform gmsh sizes of the half-disk (R = 1)
-HERTZ_EPS = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5]  # the penalty's ε at the finest size
-HERTZ_EPS_H = 1e-5  # ε of the h-sweep: its penetration ε p0 ~ 7e-7 is far below the finest h^2/R ~ 4e-5
+HERTZ_EPS = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5]  # the penalty's ε at the finest size of configs/elasticity/hertz.yaml
 BENCH_2D, BENCH_3D = [64, 128, 256], [8, 16, 32]
 FLOOR_TARGET = 1.5  # Newton time / linear floor on the finest 2-D level
 # the 2-D bench runs this many times and keeps the run whose finest level was fastest (as make bench does for
@@ -82,65 +78,138 @@ def manufactured(folders):
 
 # --- Hertz --------------------------------------------------------------------------------------------
 
-def hertz(F, material, R=1.0):
-    """(a, p0) of a cylinder of radius R on a rigid plane under the force F per unit length (plane strain)."""
-    E_star = material.E / (1 - material.nu**2)
-    a = 2 * math.sqrt(R * F / (math.pi * E_star))
-    return a, 2 * F / (math.pi * a)
+HERTZ_COLUMNS = (("contact_force", "F_h"), ("half_width", "a_h"), ("half_width_hertz", "a(F_h)"),
+                 ("half_width_err", "a error"), ("peak_pressure", "p_h"), ("peak_pressure_hertz", "p0(F_h)"),
+                 ("peak_pressure_err", "p error"), ("force_hertz", "F(a_h)"), ("force_err", "F error"))
 
 
-def hertz_level(cfg, size, eps_value):
-    """Solve the Hertz problem on the half-disk of gmsh size `size` at ε; return (h, F_h, a_h, p_h, outcome)
-    with F_h = (1/ε)∫_Γc [w_h]_+^α (exact for P1), a_h half the x-extent of {w_h > 0} (zero crossings
-    of the linear w_h on the facets) and p_h the largest vertex pressure (1/ε)[w_i]_+^α."""
-    comm = MPI.COMM_WORLD
-    domain = meshes.build(cfg.mesh, cfg.contact, size, comm)
-    V = elasticity.space(cfg, domain.mesh)
-    u_h, eps = fem.Function(V), fem.Constant(domain.mesh, eps_value)
-    forms = elasticity.forms(cfg, domain, u_h, eps)
-    bcs = [elasticity.dirichlet_condition(V, domain, None)]
-    problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
-    outcome = strategies.solve(cfg.solver, problem)
-    term = forms.contact
-    force = comm.allreduce(float(term.residual(u_h.x.array).sum()), op=MPI.SUM)
-    w, x = term.values(u_h.x.array), term.points[..., 0]
-    pressure = comm.allreduce(float((np.maximum(w, 0) ** cfg.alpha).max(initial=0.0)), op=MPI.MAX) / eps_value
-    crossing = (w[:, 0] > 0) != (w[:, 1] > 0)
-    t = w[crossing, 0] / (w[crossing, 0] - w[crossing, 1])
-    ends = np.concatenate([x[crossing, 0] + t * (x[crossing, 1] - x[crossing, 0]), x[w > 0]])
-    right = comm.allreduce(float(ends.max(initial=-np.inf)), op=MPI.MAX)
-    left = comm.allreduce(float(ends.min(initial=np.inf)), op=MPI.MIN)
-    return domain.h, force, (right - left) / 2, pressure, outcome
-
-
-def hertz_rows(cfg, pairs):
-    lines = ["| h | ε | its | F_h | a_h | a(F_h) | a error | p_h | p0(F_h) | p error |", "|" + "---|" * 10]
-    for size, eps in pairs:
-        h, F, a_h, p_h, outcome = hertz_level(cfg, size, eps)
-        a, p0 = hertz(F, cfg.material)
-        ok = "" if outcome.converged else " (not converged)"
-        lines.append(f"| {h:.3e} | {eps:.0e} | {outcome.newton_its}{ok} | {F:.5e} | {a_h:.5f} | {a:.5f} | "
-                     f"{abs(a_h - a) / a:.2e} | {p_h:.5f} | {p0:.5f} | {abs(p_h - p0) / p0:.2e} |")
+def hertz_table(rows):
+    """The Hertz columns of rate rows (problem.hertz_radius): measured, Hertz's closed form, relative error."""
+    lines = ["| N | h | ε | its | " + " | ".join(label for _, label in HERTZ_COLUMNS) + " |",
+             "|" + "---|" * (4 + len(HERTZ_COLUMNS))]
+    for r in rows:
+        ok = "" if r["converged"] else " (not converged)"
+        cells = [str(r["N"]), f"{number(r['h']):.3e}", f"{number(r['epsilon']):.0e}", f"{r['newton_its']}{ok}"]
+        cells += [f"{number(r[c]):.2e}" if c.endswith("_err") else f"{number(r[c]):.5g}" for c, _ in HERTZ_COLUMNS]
+        lines.append("| " + " | ".join(cells) + " |")
     return lines
+
+
+def factors(rows, column):
+    """e_{k-1}/e_k of a column between successive rows: how much an error falls per level."""
+    e = [number(r[column]) for r in rows]
+    return [a / b for a, b in zip(e, e[1:])]
+
+
+def falls(rows, column):
+    """A sentence: whether the column falls on every level, and by which factors."""
+    f = factors(rows, column)
+    if not f:
+        return "is measured on one level"
+    how = "falls on every level" if all(x > 1 for x in f) else "does not fall on every level"
+    return f"{how} (factors {', '.join(f'{x:.2f}' for x in f)})"
+
+
+def reported(path, folder):
+    """The study's tables and figures (pressure.png among them) as `signorini report` writes them."""
+    tables.write(results.load(folder), config.load(path, [f"output.dir={folder.parent}"]))
 
 
 def hertz_section(folders):
     path = CONFIGS / "hertz.yaml"
-    status, _, folder = run(path, RUNS / "hertz")
+    status, rows, folder = run(path, RUNS / "hertz")
     folders.append(folder)
-    cfg = config.load(path, [f"mesh.sizes={HERTZ_SIZES}", f"epsilon.theta={HERTZ_EPS_H}"])
-    h_sweep = hertz_rows(cfg, [(s, HERTZ_EPS_H) for s in HERTZ_SIZES])
-    eps_sweep = hertz_rows(cfg, [(HERTZ_SIZES[-1], e) for e in HERTZ_EPS])
+    reported(path, folder)
+    cfg = config.load(path)
+    finest = cfg.mesh.sizes[-1]
+    eps_rows = []
+    for eps in HERTZ_EPS:
+        _, found, eps_folder = run(path, RUNS / "hertz-eps" / f"{eps:g}", [f"mesh.sizes=[{finest}]",
+                                                                            f"epsilon.theta={eps}"])
+        folders.append(eps_folder)
+        eps_rows += found
     return ["", "## Hertz contact", "",
-            f"`configs/elasticity/hertz.yaml` ({cfg.description}; its own run: exit status {status}). The "
-            f"half-disk of radius R = 1 (E = {cfg.material.E:g}, ν = {cfg.material.nu:g}, plane strain) is held at "
-            "u = 0 on its diameter; the rigid plane rises by δ = 0.02 into it (gap g0 = y + 1 − δ along n = (0, −1)). "
-            "Hertz's half-width and peak pressure are those of the measured force F_h = (1/ε)∫[w_h]_+^α: "
-            "a = 2√(R F/(π E*)), p0 = 2F/(π a), E* = E/(1 − ν²). The Hertz values hold for a half-space "
-            "(a ≪ R): here a/R ≈ 0.12, so the errors level off at the model error of the finite body, "
-            "not at zero.", "",
-            f"### h → 0 at ε = {HERTZ_EPS_H:g} (uniform meshes of size h)", ""] + h_sweep + \
-           ["", f"### ε → 0 at the finest size {HERTZ_SIZES[-1]:g}", ""] + eps_sweep
+            f"`configs/elasticity/hertz.yaml` ({cfg.description}; exit status {status}). The half-disk of radius "
+            f"R = 1 (E = {cfg.material.E:g}, ν = {cfg.material.nu:g}, plane strain) is held at u = 0 on its diameter; "
+            "the rigid plane rises by δ = 0.02 into it (gap g0 = y + 1 − δ along n = (0, −1)). problem.hertz_radius "
+            "puts Hertz's quantities in the study's own table: a_h and p_h (the largest nodal pressure λ_i/∫φ_i) "
+            "against a = 2√(R F_h/(π E*)) and p0 = 2F_h/(π a) of the measured force F_h = (1/ε)∫[w_h]_+^α, "
+            "E* = E/(1 − ν²), and F_h against Hertz's force π E* a_h²/(4R) of the measured half-width. Its "
+            f"pressure profile, one curve per level with Hertz's: `{(folder / 'pressure.png').relative_to(ROOT)}`.",
+            "", f"### h → 0 at ε = {cfg.epsilon.theta:g} (the study's own levels)", ""] + hertz_table(rows) + \
+           ["", f"The half-width error {falls(rows, 'half_width_err')}, the force error "
+                f"{falls(rows, 'force_err')}, the peak-pressure error {falls(rows, 'peak_pressure_err')}. "
+                "Hertz's formulas hold for a half-space (a ≪ R; here a/R ≈ "
+                f"{number(rows[-1]['half_width_hertz']):.2f}): the errors are this model error and the "
+                "discretisation's together.",
+            "", f"### ε → 0 at the finest size {finest:g}", ""] + hertz_table(eps_rows) + hertz_3d(folders)
+
+
+def hertz_3d(folders):
+    path = CONFIGS / "hertz-3d.yaml"
+    status, rows, folder = run(path, RUNS / "hertz-3d")
+    folders.append(folder)
+    reported(path, folder)
+    cfg = config.load(path)
+    return ["", "### 3-D: a rigid sphere pressed into a block", "",
+            f"`configs/elasticity/hertz-3d.yaml` ({cfg.description}; exit status {status}): the sphere's paraboloid "
+            "r²/(2R), R = 1, 0.01 into the block (−1, 1)² × (0, 1) held at u = 0 on its other faces, cells of 0.04 "
+            "near the contact disk on the base mesh, halved by each uniform refinement (meshes/hertz_block.geo). "
+            "a = (3 F_h R/(4E*))^{1/3}, p0 = 3F_h/(2π a²), F(a_h) = 4E* a_h³/(3R); a_h the contact radius. "
+            f"Radial pressure profile: `{(folder / 'pressure.png').relative_to(ROOT)}`.", ""] + hertz_table(rows) + \
+           ["", f"The half-width error {falls(rows, 'half_width_err')}, the force error {falls(rows, 'force_err')}, "
+                f"the peak-pressure error {falls(rows, 'peak_pressure_err')}."]
+
+
+# --- the Signorini limit and fields -------------------------------------------------------------------
+
+def limit_section(folders):
+    """The elastic ε-sweep against the VI on one mesh, and the VI's contact force against the penalty's at
+    ε = 1e-10 on the VI's own levels."""
+    status, _, folder = run(CONFIGS / "sweep.yaml", RUNS / "limit")
+    folders.append(folder)
+    tables = results.load(folder).tables
+    lines = ["", "## The Signorini limit", "",
+             f"`configs/elasticity/sweep.yaml` (exit status {status}): ‖u_ε,h − u_S,h‖ against ε on one mesh, u_S,h "
+             "the elastic Signorini problem's solution (u·n ≤ g0 as bounds on u_y at the Γ_C nodes).", "",
+             "| α | ε | its | L2 | H1 | L2(Γ_C) | penetration |", "|---|---|---|---|---|---|---|"]
+    for r in tables["sweep"]:
+        lines.append(f"| {r['alpha']:g} | {r['epsilon']:.0e} | {r['newton_its']} | {number(r['L2']):.3e} | "
+                     f"{number(r['H1']):.3e} | {number(r['L2_gamma_c']):.3e} | {number(r['penetration']):.3e} |")
+    lines += ["", "Fitted slopes in ε over the smallest ε: " + "; ".join(
+        f"α = {r['alpha']:g}: L2 {number(r['fit_L2']):.2f}, H1 {number(r['fit_H1']):.2f}" for r in tables["fitted"])
+        + " (1/α expected)."]
+    vi_path = CONFIGS / "signorini.yaml"
+    status, vi_rows, vi_folder = run(vi_path, RUNS / "limit")
+    penalty = ["study_type=refinement", "alpha=1", "epsilon={law: constant, theta: 1.0e-10}", "study=penalty"]
+    _, pen_rows, pen_folder = run(vi_path, RUNS / "limit", penalty)
+    folders += [vi_folder, pen_folder]
+    lines += ["", f"`configs/elasticity/signorini.yaml` (exit status {status}): the VI's contact force Σ λ_i against "
+                  "the penalty's (1/ε)∫[w_h]_+ at ε = 1e-10, α = 1, on the same meshes.", "",
+              "| N | contact nodes | VI force | penalty force | relative difference |", "|---|---|---|---|---|"]
+    for a, b in zip(vi_rows, pen_rows):
+        diff = abs(number(a["contact_force"]) / number(b["contact_force"]) - 1)
+        lines.append(f"| {a['N']} | {a['contact_nodes']} | {number(a['contact_force']):.10e} | "
+                     f"{number(b['contact_force']):.10e} | {diff:.1e} |")
+    return lines
+
+
+def fields_section(folders):
+    """What output.fields writes for elasticity, checked on the written files: the pressure against
+    (1/ε)[−u_y]_+^α of the stored u_h on y = 0."""
+    import h5py
+    path = CONFIGS / "square-alpha2.yaml"
+    _, rows, folder = run(path, RUNS / "fields", ["output.fields=true", "mesh.refinements=[8, 16]"])
+    folders.append(folder)
+    cfg = config.load(path)
+    with h5py.File(folder / "fields" / "level_01.h5", "r") as h5:
+        names = sorted(h5["Function"])
+        x, u, p = h5["Mesh/mesh/geometry"][:], h5["Function/u_h/0"][:], h5["Function/pressure/0"][:, 0]
+    expected = np.where(x[:, 1] == 0, np.maximum(-u[:, 1], 0) ** cfg.alpha / number(rows[1]["epsilon"]), 0.0)
+    return ["", "## Fields", "",
+            f"`{path.relative_to(ROOT)}` with output.fields: true, N = 8, 16, writes per level "
+            f"fields/level_NN.xdmf with {', '.join(names)} (docs/guide/elasticity.md). On N = 16 the stored "
+            f"pressure equals (1/ε)[−u_y]_+^α of the stored u_h on Γ_C to {np.abs(p - expected).max():.1e}."]
 
 
 # --- the page -----------------------------------------------------------------------------------------
@@ -149,6 +218,8 @@ def page():
     folders, body = [], []
     body += manufactured(folders)
     body += hertz_section(folders)
+    body += limit_section(folders)
+    body += fields_section(folders)
     head = ["# Linear elasticity with normal compliance", "", provenance.line("elasticity", folders), "",
             "The elastic problem (docs/guide/elasticity.md): −div σ(u) = f, u = u_D on Γ_D, "
             "ε σ_n(u) + [u·n − g0]_+^α = ĝ_n and σ_t(u) = ĝ_t on Γ_C, P1 vector Lagrange, the contact term "

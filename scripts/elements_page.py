@@ -1,4 +1,5 @@
-"""docs/elements.md from the runs of configs/elements/ (`make elements`): P2 against P1 on one problem.
+"""docs/elements.md from the runs of configs/elements/ (`make elements`): P2 against P1 on one scalar problem
+and one elastic problem.
 
     python scripts/elements_page.py CONFIG.yaml ... [--output RESULTS] [--out docs/elements.md]
 reads each config's results and writes the page; every number on it comes from those results."""
@@ -16,6 +17,7 @@ COLUMNS = ("N", "h", "dofs", "newton_its", "L2", "rate_L2", "H1", "rate_H1", "po
            "contact_quadrature")
 NORMS = ("L2", "H1", "pos_gc")
 P2_RULE = "exact"  # the default contact rule of element.degree 2
+SCALAR, ELASTIC = "poisson", "elasticity"  # the problems compared (problem.pde)
 
 
 def main(argv=None):
@@ -25,19 +27,23 @@ def main(argv=None):
     parser.add_argument("--out", default="docs/elements.md", help="the page to write")
     args = parser.parse_args(argv)
     runs = [(path, config.load(path, [f"output.dir={args.output}"] if args.output else [])) for path in args.configs]
-    studies = {(cfg.element.degree, cfg.problem.exact_solves, str(cfg.contact_quadrature)):
+    studies = {(cfg.problem.pde, cfg.element.degree, cfg.problem.exact_solves, str(cfg.contact_quadrature)):
                (path, cfg, results.load(cfg.output_dir).rows) for path, cfg in runs}
-    p1, p2 = studies[(1, "compliance", "exact")], studies[(2, "compliance", str(P2_RULE))]
-    checks = [v for (degree, solves, rule), v in studies.items()
+    scalar = {key[1:]: study for key, study in studies.items() if key[0] == SCALAR}
+    p1, p2 = scalar[(1, "compliance", "exact")], scalar[(2, "compliance", str(P2_RULE))]
+    checks = [v for (degree, solves, rule), v in scalar.items()
               if degree == 2 and solves == "compliance" and rule != str(P2_RULE)]
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     sections = [HEADER.replace("{provenance}", provenance.line("elements", [cfg.output_dir for _, cfg in runs])),
                 study_section("P1", *p1), study_section("P2", *p2), comparison(p1, p2)]
     sections += [quadrature_section(p2, check) for check in checks]
-    limit = [studies.get((k, "signorini", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
+    limit = [scalar.get((k, "signorini", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
     if all(limit):
         sections.append(signorini_section(*limit, p1, p2))
+    elastic = [studies.get((ELASTIC, k, "compliance", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
+    if all(elastic):
+        sections.append(elastic_section(*elastic))
     out.write_text("\n\n".join(sections) + "\n")
     print(f"wrote {out}")
     return 0
@@ -73,25 +79,72 @@ def comparison(p1, p2):
     (_, _, rows1), (_, _, rows2) = p1, p2
     fit1, fit2 = ({norm: fit(rows, norm) for norm in NORMS} for rows in (rows1, rows2))
     last1, last2 = rows1[-1], rows2[-1]
-    lines = ["## What the rates show", ""]
+    lines = ["## What the rates show", ""] + rate_lines(fit1, fit2)
+    lines.append(f"- At N = {last2['N']}: P2 L2 {last2['L2']:.3e} and H1 {last2['H1']:.3e} with {last2['dofs']:,} "
+                 f"dofs against P1 L2 {last1['L2']:.3e} and H1 {last1['H1']:.3e} with {last1['dofs']:,} dofs.")
+    lines += equal_dofs_lines(rows1, rows2)
+    lines.append("- The manufactured data g = ε∂_n u_ex + [u_ex]_+^α make u_ex the exact solution of the "
+                 "compliance problem at each level's ε, so these are discretisation errors of that problem; "
+                 "its distance to the Signorini solution, the model error, is not in them (the last section).")
+    return "\n".join(lines)
+
+
+def rate_lines(fit1, fit2):
+    """The fitted orders of P1 and P2 against the interpolation orders k + 1 (L2) and k (H1) of degree k."""
+    lines = []
     for label, fits, k in (("P1", fit1, 1), ("P2", fit2, 2)):
         lines.append(f"- {label}: L2 {cells.rate(fits['L2'])} and H1 {cells.rate(fits['H1'])} against the "
                      f"interpolation orders {k + 1} and {k} of degree {k}: the penalty term (weight 1/ε = 1/h) "
                      + ("keeps" if keeps(fits, k) else "does not keep") + " the best order the element allows"
                      + (f" ({keeps_detail(fits, k)})." if not keeps(fits, k) else "."))
     lines.append(f"- Γ_C: pos_gc {cells.rate(fit1['pos_gc'])} (P1) and {cells.rate(fit2['pos_gc'])} (P2).")
-    lines.append(f"- At N = {last2['N']}: P2 L2 {last2['L2']:.3e} and H1 {last2['H1']:.3e} with {last2['dofs']:,} "
-                 f"dofs against P1 L2 {last1['L2']:.3e} and H1 {last1['H1']:.3e} with {last1['dofs']:,} dofs.")
+    return lines
+
+
+def equal_dofs_lines(rows1, rows2):
+    """P1 against P2 on the levels with the same number of dofs."""
+    lines = []
     for r2 in rows2:
         r1 = next((r for r in rows1 if r["dofs"] == r2["dofs"]), None)
         if r1 is not None:
             lines.append(f"- At equal dofs ({r2['dofs']:,}: P2 at N = {r2['N']}, P1 at N = {r1['N']}): P2's L2 "
                          f"error is {r1['L2'] / r2['L2']:.0f} times smaller than P1's, its H1 error "
                          f"{r1['H1'] / r2['H1']:.0f} times.")
-    lines.append("- The manufactured data g = ε∂_n u_ex + [u_ex]_+^α make u_ex the exact solution of the "
-                 "compliance problem at each level's ε, so these are discretisation errors of that problem; "
-                 "its distance to the Signorini solution, the model error, is not in them (the last section).")
-    return "\n".join(lines)
+    return lines
+
+
+def elastic_section(p1, p2):
+    """The elastic problem with P1 and P2: both tables, their fitted rates and the finest levels side by side."""
+    (path1, cfg, rows1), (path2, _, rows2) = p1, p2
+    fit1, fit2 = ({norm: fit(rows, norm) for norm in NORMS} for rows in (rows1, rows2))
+    last1, last2 = rows1[-1], rows2[-1]
+    return "\n".join([
+        "## Linear elasticity: P2 against P1",
+        "",
+        f"`{path1}` and `{path2}`: linear elasticity with normal compliance ([elasticity.md](elasticity.md)), "
+        f"plane strain, E = {cfg.material.E:g}, ν = {cfg.material.nu:g}, α = {cfg.alpha:g}, ε = h, "
+        f"u_ex = ({', '.join(f'`{c.text}`' for c in cfg.problem.exact)}), contact on the `{cfg.contact}` face. "
+        "The P2 contact term is integrated as the scalar problem's: each Γ_C facet cut at the zeros of the "
+        "quadratic w_h = u_h·n − g0, w = u·n − g0. `pos_gc` = "
+        "‖[w]_+ − [w_h]_+‖_{L³(Γ_C)}; `H1` the seminorm of the vector error.",
+        "",
+        "P1:",
+        "",
+        markdown(rows1, COLUMNS),
+        "",
+        "P2:",
+        "",
+        markdown(rows2, COLUMNS),
+        "",
+        f"Fitted over the last {rates.FIT_LEVELS} levels: P1 " + ", ".join(f"{n} {cells.rate(fit1[n])}" for n in NORMS)
+        + "; P2 " + ", ".join(f"{n} {cells.rate(fit2[n])}" for n in NORMS) + "; all levels converged: "
+        + cells.yes(all(r["converged"] for r in rows1 + rows2)) + ".",
+        "",
+        *rate_lines(fit1, fit2),
+        f"- At N = {last2['N']}: P2 L2 {last2['L2']:.3e} and H1 {last2['H1']:.3e} with {last2['dofs']:,} dofs "
+        f"against P1 L2 {last1['L2']:.3e} and H1 {last1['H1']:.3e} with {last1['dofs']:,} dofs.",
+        *equal_dofs_lines(rows1, rows2),
+    ])
 
 
 def quadrature_section(p2, check):

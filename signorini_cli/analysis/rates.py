@@ -234,6 +234,10 @@ PAPER_RATES = (
 )
 
 
+# the proven rates of each contact method (problem.method): a method brings its own tuple of records
+RECORDS = {"penalty": PAPER_RATES}
+
+
 @dataclass(frozen=True)
 class Expected:
     """The proven rate for one study and norm (None: not covered, `reason` says why)."""
@@ -249,13 +253,14 @@ def base_norm(norm):
     return norm.removeprefix("diff_").removesuffix("_ref")
 
 
-def expected(dimension, alpha, p, norm):
-    """The best rate PAPER_RATES proves for ‖·‖ = norm when d = dimension, alpha, eps = theta h^p."""
+def expected(dimension, alpha, p, norm, records=PAPER_RATES):
+    """The best rate the `records` (a method's, RECORDS) prove for ‖·‖ = norm when d = dimension, alpha,
+    eps = theta h^p."""
     if not alpha_admissible(dimension, alpha):
         bound = f"α = {alpha:g} > 3" if dimension == 3 and alpha > 3 else f"α = {alpha:g} < 1"
         return Expected(None, reason=f"{bound}, condition (5)")
     norm = base_norm(norm)
-    records = [r for r in PAPER_RATES if dimension in r.dimensions and r.norm == norm
+    records = [r for r in records if dimension in r.dimensions and r.norm == norm
                and ALPHA_CONDITIONS[r.alpha](alpha)]
     if not records:
         return Expected(None, reason=f"the paper proves no rate for {norm} with d = {dimension}, "

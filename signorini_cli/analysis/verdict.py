@@ -1,7 +1,7 @@
 """A study's verdict against the paper: per norm the fitted rate, the proven rate and whether they agree;
 per scalar quantity the observed order, Richardson extrapolation and GCI; the user's `expect:` block."""
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 
 from ..config import expressions
 from . import rates
@@ -174,7 +174,9 @@ def expected(cfg, norm):
     if norm.endswith("_ref") and cfg.verification.reference_epsilon == "fixed" and p != 0:
         return rates.Expected(None, reason="reference_epsilon: fixed compares each level with a problem at "
                                            "another eps: the error contains the model error")
-    return rates.expected(cfg.dimension, cfg.alpha, p, norm)
+    if cfg.problem.method not in rates.RECORDS:
+        return rates.Expected(None, reason=f"no proven rates recorded for problem.method {cfg.problem.method}")
+    return rates.expected(cfg.dimension, cfg.alpha, p, norm, rates.RECORDS[cfg.problem.method])
 
 
 def _zero(expression):
@@ -295,6 +297,27 @@ def summary_rows(summary):
         rows.append(dict(kind="expect", name=e.norm, observed_rate=e.observed, expected_rate=e.rate,
                          tolerance=e.tolerance, met=e.met))
     return rows
+
+
+def from_rows(cfg, rows):
+    """The Summary that summary_rows wrote for `cfg` (summary.csv read back): a report shows the run's verdict
+    as it was decided, not decided again."""
+    norms, quantities, expectations = [], [], []
+    for r in rows:
+        ns = tuple(int(n) for n in str(r.get("levels") or "").split())
+        if r["kind"] == "norm":
+            norms.append(NormVerdict(r["name"], r["observed_rate"], r.get("log_corrected_rate"), r["proven_rate"],
+                                     bool(r["log_factor"]), r["verdict"], r["paper"] or "", r["conditions"] or "",
+                                     ns, r["rate_lo"], r["rate_hi"], r["reason"] or ""))
+        elif r["kind"] == "quantity":
+            grid = {f.name: r[f.name] for f in fields(rates.GridConvergence)}
+            estimate = rates.GridConvergence(**grid) if r["value"] is not None else None
+            quantities.append(QuantityEstimate(r["name"], ns, estimate, r["reason"] or ""))
+        else:
+            expectations.append(Expectation(r["name"], r["expected_rate"], r["tolerance"], r["observed_rate"],
+                                            r["met"]))
+    return Summary(tuple(norms), tuple(quantities), tuple(expectations), cfg.verification.fit_levels,
+                   cfg.verification.tolerance, notes(cfg), cfg.outside_theory)
 
 
 def _levels(ns):

@@ -25,7 +25,6 @@ try:  # Ctrl-C while the modules load (MPI starts with commands' imports): one l
 
     from mpi4py import MPI
 
-    from .. import config
     from ..config import ConfigError
     from . import commands, guard, start
     from .commands import EXIT_BAD_INPUT, EXIT_EXPECTATION_NOT_MET, EXIT_NOT_CONVERGED, EXIT_OK  # noqa: F401
@@ -35,7 +34,10 @@ except KeyboardInterrupt:
 
 
 DESCRIPTION = "FEniCSx convergence studies of the normal compliance contact model."  # one line of --help
-CONFIG_HELP = f"study config (YAML; its keys: {config.DOCS}, or `signorini init`)"
+CONFIG_HELP = "study config (YAML; `signorini init` prints every key with its default and what it does)"
+# documentation that is there wherever the package is installed: the installed command itself
+DOCS_HELP = ("Config keys: `signorini init` prints every key with its default and a one-line description (the "
+             "project's configuration reference says the same at more length).")
 PETSC_HELP = ("PETSc options such as -snes_monitor or -ksp_rtol 1e-8 may follow the config (or `--`): they join "
               "solver.petsc_options, under the study's prefix")
 
@@ -52,8 +54,7 @@ class Parser(argparse.ArgumentParser):
 
 def build_parser():
     parser = Parser(prog="signorini", description=DESCRIPTION,
-                                     epilog=f"Config keys: {config.DOCS}; `signorini init` prints every key "
-                                            "with its default.")
+                                     epilog=DOCS_HELP)
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a convergence study", epilog=PETSC_HELP)
@@ -84,8 +85,8 @@ def _add_report_commands(sub):
     check.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        help="override a config key, as for run (repeatable)")
     init = sub.add_parser("init", help="a commented config with every key and its default",
-                          description=f"Every config key with its default and a one-line description "
-                                      f"(more in {config.DOCS}); valid as it stands.")
+                          description="Every config key with its default and a one-line description; "
+                                      "valid as it stands.")
     init.add_argument("file", nargs="?", help="write it here (default: print it)")
     init.add_argument("--force", action="store_true", help="overwrite FILE")
     listing = sub.add_parser("list", help="the shipped configs with their descriptions")
@@ -98,13 +99,16 @@ def _add_report_commands(sub):
                      "norms the paper bounds), all, or a comma-separated list (default: the study's output.columns)")
     rep.add_argument("--width", metavar="LENGTH", help="figure width, e.g. 390pt or 5.4in (default: the study's "
                      "output.figure_width, else 345pt)")
+    rep.add_argument("--font", choices=("cm", "stix", "sans"), help="the figures' font: cm (Computer Modern, "
+                     "a default LaTeX article's; the default), stix (Times-like) or sans")
     rep.add_argument("--per-norm", action="store_true", help="also one convergence figure per norm")
     rep.add_argument("--no-plots", action="store_true", help="tables only (matplotlib not imported)")
     rep.add_argument("--output", help="write into this folder instead of the study's")
     compare = sub.add_parser("compare", help="overlay the curves of several studies")
     compare.add_argument("paths", nargs="+", help="study folders (or their study.h5 / rates.csv)")
     compare.add_argument("--label", action="append", metavar="NAME", help="a legend label per study, in order")
-    compare.add_argument("--output", help="folder for the figures (default: compare/ next to the first study)")
+    compare.add_argument("--output", help="folder for the tables and figures (default: compare-<labels>/ next to "
+                                          "the first study)")
 
 
 class _Version(argparse.Action):

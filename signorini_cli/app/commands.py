@@ -11,9 +11,9 @@ import yaml
 from mpi4py import MPI
 
 from .. import config, studies
-from ..analysis import rates
+from ..analysis import rates, verdict
 from ..config import ConfigError
-from ..record import results, resume
+from ..record import csvfile, results, resume
 from ..report import plots, progress, tables, verdicts
 from ..solve import solver
 from ..system import errors
@@ -100,20 +100,35 @@ def report_study(args):
             raise ConfigError("--digits", f"must be >= 1, got {digits}")
         columns = config.table_columns(args.columns, "--columns") if args.columns else None
         figure = {"width": config.length(args.width, "--width") if args.width else None,
-                  "per_norm": args.per_norm}
+                  "per_norm": args.per_norm, "font": args.font or "cm"}
         folder = Path(args.output or study.folder)
         beside = args.columns and folder.resolve() == study.folder.resolve()
-        written = []
+        written, summary = [], recorded_verdict(study, cfg)
         if MPI.COMM_WORLD.rank == 0:  # other columns beside the study's own files, never over them
             written = tables.write(study, cfg, digits, plots=not args.no_plots, folder=folder, columns=columns,
-                                   figure=figure, suffix=columns_suffix(args.columns) if beside else "")
+                                   figure=figure, suffix=columns_suffix(args.columns) if beside else "",
+                                   summary=summary)
             table = tables.terminal(study, cfg) if columns is None else tables.format_table(study.rows, cfg, columns)
     except (ConfigError, OSError) as err:
         return fail(args.path, err)
     if MPI.COMM_WORLD.rank == 0:
-        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table,
-              tables.wrote((p.relative_to(folder) for p in written), folder)])
+        shown = [verdicts.format_summary(summary)] if summary is not None and columns is None else []
+        emit([f"study {study.name}: {_levels_done(study, cfg)} from {args.path}", table] + shown
+             + [tables.wrote((p.relative_to(folder) for p in written), folder)])
     return EXIT_OK
+
+
+def recorded_verdict(study, cfg):
+    """The verdict the run recorded (its summary.csv), as run printed it; None without one (a type without a
+    verdict, a study read from rates.csv alone, a summary.csv of an older format)."""
+    path = study.folder / "summary.csv"
+    if cfg is None or not path.exists():
+        return None
+    try:
+        return verdict.from_rows(cfg, csvfile.read(path))
+    except (csvfile.Damaged, KeyError):
+        logger.warning("%s: no verdict read (damaged, or written by an older version)", path)
+        return None
 
 
 def columns_suffix(columns):
@@ -129,7 +144,8 @@ def report_map(args):
     tables are refused, a map has none of them."""
     try:
         given = [flag for flag, value in (("--digits", args.digits), ("--columns", args.columns),
-                                          ("--width", args.width), ("--per-norm", args.per_norm)) if value]
+                                          ("--width", args.width), ("--per-norm", args.per_norm),
+                                          ("--font", args.font)) if value]
         if given:
             raise ConfigError(given[0], "applies to a study's tables and figures; a map's report has no such option")
         text = maps.report(args.path, not args.no_plots, args.output) if MPI.COMM_WORLD.rank == 0 else None
@@ -173,7 +189,7 @@ def compare(args):
         twice = next((label for label in labels if labels.count(label) > 1), None)
         if twice is not None:  # one label would stand for two studies in the legend and the table
             raise ConfigError("--label", f"{twice!r} names two of the studies; give each its own label")
-        folder = Path(args.output) if args.output else found[0].folder.parent / "compare"
+        folder = Path(args.output) if args.output else found[0].folder.parent / compare_folder(labels)
         rows = {f"{label} {part}".strip(): part_rows for label, study in zip(labels, found)
                 for part, part_rows in compared(study).items()}
         fit_levels = {f"{label} {part}".strip(): _fit_levels(study) for label, study in zip(labels, found)
@@ -186,6 +202,15 @@ def compare(args):
     if MPI.COMM_WORLD.rank == 0:
         emit([tables.summary_table(rows, fit_levels), tables.wrote((p.name for p in written), folder)])
     return EXIT_OK
+
+
+def compare_folder(labels):
+    """compare-<label>-<label>...: a comparison's default folder named for its inputs, so that the next
+    comparison of other studies does not write over it (long lists cut, a hash keeps them apart)."""
+    slug = "-".join(re.sub(r"[^A-Za-z0-9_.]+", "_", label).strip("_") for label in labels)
+    if len(slug) > 60:
+        slug = slug[:51] + "-" + hashlib.sha256("\0".join(labels).encode()).hexdigest()[:8]
+    return "compare-" + slug
 
 
 def _fit_levels(study):
@@ -341,6 +366,8 @@ def init(args):
             Path(args.file).write_text(text)
     except OSError as err:
         return fail(args.file, err)
+    if MPI.COMM_WORLD.rank == 0:
+        emit([f"wrote {args.file}: every config key at its default, each with a one-line comment"])
     return EXIT_OK
 
 

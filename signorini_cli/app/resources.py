@@ -23,10 +23,13 @@ ROW_NONZEROS = {2: 7, 3: 15}
 # measured 1.21, 1.20 at size 0.02 (unit square, half disk); in 3-D measured 0.92, 0.88 at size 0.05 (unit
 # cube, half ball), falling with the size. The boundary adds more on coarse meshes, which fit anyway.
 GMSH_DOFS_PER_MEASURE = {2: 1.15, 3: 0.85}
-# P2 (element.degree 2, 2-D only): a dof per vertex and per edge, E ≈ 3V, so 4 dofs per P1 dof; on the Kuhn
-# grid a vertex dof couples with 19 dofs and an edge dof with 9, (19 + 3·9)/4 = 11.5 nonzeros per row. The
-# bytes per dof and per nonzero are P1's fit above, not measured for P2.
-P2_DOFS_PER_P1_DOF, P2_ROW_NONZEROS = 4, 11.5
+# P2 (element.degree 2): a dof per vertex and per edge. 2-D: E ≈ 3V, so 4 dofs per P1 dof; on the Kuhn grid
+# a vertex dof couples with 19 dofs and an edge dof with 9, (19 + 3·9)/4 = 11.5 nonzeros per row. 3-D:
+# E ≈ 7V, so 8 dofs per P1 dof; the unit cube's P2 stiffness has 25.8, 26.7, 27.2 nonzeros per row at
+# N = 8, 12, 16, falling like 1/N to 28.6 (the boundary's rows are shorter). The bytes per dof and per
+# nonzero are P1's fit above, not measured for P2.
+P2_DOFS_PER_P1_DOF = {2: 4, 3: 8}
+P2_ROW_NONZEROS = {2: 11.5, 3: 28.6}
 # A vector problem (elasticity) has d dofs per node, each row coupling with d times the scalar neighbours:
 # d times the dofs, d² times the nonzeros of the scalar space of the same element.
 
@@ -75,8 +78,8 @@ def peak_meshes(cfg, comm):
     if peak is None:
         return None
     if cfg.element.degree == 2:
-        peak = [(label, P2_DOFS_PER_P1_DOF * dofs, round(P2_ROW_NONZEROS * P2_DOFS_PER_P1_DOF * dofs))
-                for label, dofs, _ in peak]
+        per_dof, per_row = P2_DOFS_PER_P1_DOF[cfg.mesh.dimension], P2_ROW_NONZEROS[cfg.mesh.dimension]
+        peak = [(label, per_dof * dofs, round(per_row * per_dof * dofs)) for label, dofs, _ in peak]
     d = cfg.mesh.dimension if units.PDES[cfg.problem.pde].VECTOR else 1
     return [(label, d * dofs, d * d * nonzeros) for label, dofs, nonzeros in peak]
 

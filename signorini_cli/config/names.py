@@ -13,16 +13,16 @@ class Name:
     definition: str
 
 
-# the error norms (the paper's bounds: Lemma 3.1, Corollary 3.2, Lemma 4.2); H1 is the seminorm
+# the error norms (the paper's bounds: Lemma 3.1, Corollary 3.2, Lemma 4.2); H1 is the seminorm. tex: the norm
+# itself as a header; definition: what the header leaves to the caption (empty: nothing)
 NORMS = {
-    "L2": Name("L²", "$L^2$", r"$\|u-u_h\|_{L^2(\Omega)}$"),
-    "H1": Name("H¹", "$H^1$", r"$|u-u_h|_{H^1(\Omega)}$ (seminorm)"),
-    "L2_gc": Name("L²(Γ_C)", r"$L^2(\Gamma_C)$", r"$\|u-u_h\|_{L^2(\Gamma_C)}$"),
-    "pos_gc": Name("[·]+ on Γ_C", r"$[\cdot]_+$", r"$\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}$"),
-    "pos_gc_scaled": Name("[·]+ scaled", r"$[\cdot]_+^{(\alpha+1)/2}$",
-                          r"$\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{(\alpha+1)/2}$"),
-    "energy_err": Name("energy", "energy",
-                       r"$(|u-u_h|_{H^1}^2"
+    "L2": Name("L²", r"$\|u-u_h\|_{L^2}$", ""),
+    "H1": Name("H¹", r"$|u-u_h|_{H^1}$", r"$|\cdot|_{H^1}$: the $H^1(\Omega)$ seminorm"),
+    "L2_gc": Name("L²(Γ_C)", r"$\|u-u_h\|_{L^2(\Gamma_C)}$", ""),
+    "pos_gc": Name("[·]+ on Γ_C", r"$\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}$", ""),
+    "pos_gc_scaled": Name("[·]+ scaled", r"$\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{(\alpha+1)/2}$", ""),
+    "energy_err": Name("energy", r"$e_\varepsilon$",
+                       r"$e_\varepsilon = (|u-u_h|_{H^1}^2"
                        r"+\varepsilon^{-1}\|[u]_+-[u_h]_+\|_{L^{\alpha+1}(\Gamma_C)}^{\alpha+1})^{1/2}$ (Lemma 3.1)"),
 }
 # the columns before the errors
@@ -34,7 +34,19 @@ COLUMNS = {
     "epsilon": Name("ε", r"$\varepsilon$", "the penalty parameter"),
     "newton_its": Name("its", "its", "Newton iterations"),
     "time_s": Name("time", "time", "wall time of the level in seconds"),
+    # a Hertz contact (hertz: {radius}): measured, Hertz's closed form, relative error
+    "half_width": Name("a_h", "$a_h$", "the contact half-width"),
+    "half_width_hertz": Name("a(F_h)", "$a(F_h)$", "Hertz's half-width under the force $F_h$"),
+    "half_width_err": Name("a err", r"$|a_h-a|/a$", "the half-width's relative error"),
+    "peak_pressure": Name("p_h", "$p_h$", "the peak contact pressure"),
+    "peak_pressure_hertz": Name("p0(F_h)", "$p_0(F_h)$", "Hertz's peak pressure under the force $F_h$"),
+    "peak_pressure_err": Name("p err", r"$|p_h-p_0|/p_0$", "the peak pressure's relative error"),
+    "force_hertz": Name("F(a_h)", "$F(a_h)$", "Hertz's force for the half-width $a_h$"),
+    "force_err": Name("F err", r"$|F_h-F|/F$", "the force's relative error"),
+    "alpha": Name("α", r"$\alpha$", ""),
+    "p": Name("p", "$p$", ""),
 }
+HERTZ = ("contact_force",) + tuple(c for c in COLUMNS if c.startswith(("half_width", "peak_pressure", "force_")))
 
 
 def name(column):
@@ -46,8 +58,8 @@ def name(column):
     if column.endswith("_ref") and column[:-4] in NORMS:
         base = NORMS[column[:-4]]
         ref = r"u_{\mathrm{ref}}"
-        return Name(base.text + " ref", base.tex + " ref",
-                    base.definition.replace("u-u_h", ref + "-u_h").replace("[u]_+", f"[{ref}]_+"))
+        return Name(base.text + " ref", *(text.replace("u-u_h", ref + "-u_h").replace("[u]_+", f"[{ref}]_+")
+                                          for text in (base.tex, base.definition)))
     plain = column.replace("_", " ")
     return Name(plain, r"\texttt{" + column.replace("_", r"\_") + "}", plain.replace("_", r"\_"))
 
@@ -74,6 +86,7 @@ MEASURES = (
     Measure("contact_measure", ("contact_measure",), "quantity", True, BOTH),
     Measure("contact_force", ("contact_force",), "quantity", True, ("data",)),
     Measure("energy", ("energy",), "quantity", False, ("data",)),
+    Measure("hertz", HERTZ[1:], "quantity", True, ()),  # with a hertz block: against Hertz's closed forms
     Measure("diff", ("diff_L2", "diff_H1"), "error", False, ("data",)),  # successive differences
 )
 MEASURE_KEYS = tuple(m.key for m in MEASURES)

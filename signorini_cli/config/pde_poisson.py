@@ -65,15 +65,19 @@ def _exact_solves(raw, path, exact):
 
 
 def check_config(cfg, raw):
-    """Rules across sections: none beyond its problem block."""
+    """Rules across sections: the hertz measure is elasticity's."""
+    measures = cfg.verification.measures or ()
+    if "hertz" in measures:
+        raise ConfigError(f"verification.measures[{measures.index('hertz')}]", "hertz measures an elastic Hertz "
+                                                                                "contact (pde: elasticity)")
     return cfg
 
 
-def check_vi(problem, kind):
+def check_vi(problem, study):
     """The ε → 0 studies need the Signorini problem: f (and u_S on Γ_D), contact data g = 0."""
     if problem.exact is not None and not EXACT_SOLVES[problem.exact_solves].signorini:
-        raise ConfigError("problem.exact_solves", f"study_type {kind} needs a Signorini solution: "
+        raise ConfigError("problem.exact_solves", f"study_type {study.NAME} needs a Signorini solution: "
                                                   "set exact_solves: signorini, or give f alone")
     if problem.g is not None:
-        raise ConfigError("problem.g", f"study_type {kind} needs g = 0: the ε → 0 limit of "
+        raise ConfigError("problem.g", f"study_type {study.NAME} needs g = 0: the ε → 0 limit of "
                                        "ε∂_n u + [u]_+^α = g is a Signorini problem only then")

@@ -157,6 +157,9 @@ class Problem:
                                       only="only with pde: elasticity")
     normal: tuple = key(None, "elasticity: the obstacle's unit normal, d numbers (default: Γ_C's outward normal)",
                         only="only with pde: elasticity")
+    hertz_radius: float = key(None, "elasticity: the radius R of a Hertz contact (a cylinder in 2-D, a sphere in "
+                                    "3-D): its half-width, peak pressure and force beside Hertz's (data only)",
+                              example=1.0, only="only with pde: elasticity and no exact")
 
 
 @dataclass(frozen=True)
@@ -247,7 +250,7 @@ class Output:
 @dataclass(frozen=True)
 class Element:
     """The finite element of the compliance problem: Lagrange of degree 1 or 2."""
-    degree: int = key(1, "1 | 2 (2: refinement studies in 2-D, contact_quadrature exact or a Gauss rule)")
+    degree: int = key(1, "1 | 2 (2: refinement studies, contact_quadrature exact or a Gauss rule)")
 
 
 @dataclass(frozen=True)

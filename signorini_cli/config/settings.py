@@ -129,7 +129,7 @@ def _study_type(cfg, raw, pde, study):
         if key in raw:
             raise ConfigError(key, f"not used by study_type {study.NAME}{hint}")
     if study.VI:
-        pde.check_vi(cfg.problem, study.NAME)
+        pde.check_vi(cfg.problem, study)
     cfg = study.check_config(cfg, raw)
     if not study.FIELDS and cfg.output.fields:
         writers = units.takers(units.STUDY_TYPES, lambda unit: unit.FIELDS and not unit.POINTS)
@@ -140,8 +140,8 @@ def _study_type(cfg, raw, pde, study):
 
 
 def _check_element(cfg, pde, study):
-    """The element degree the problem and the study type have. What P2 supports: 2-D, its contact term exact
-    (each facet cut at the zeros of the quadratic trace) or by a Gauss rule (the vertex rule lumps P1), fields
+    """The element degree the problem and the study type have. What P2 supports: its contact term exact (each
+    facet cut at the zeros of the quadratic trace) or by a Gauss rule (the vertex rule lumps P1), fields
     written only for P1 (XDMF stores the values at the mesh's vertices)."""
     degree = cfg.element.degree
     if degree not in pde.DEGREES:
@@ -154,9 +154,6 @@ def _check_element(cfg, pde, study):
                                             "are P1 only")
     if degree == 1:
         return cfg
-    if cfg.dimension != 2:
-        raise ConfigError("element.degree", "2 is for 2-D meshes: the Γ_C measures of P2 (penetration, "
-                                            "contact_measure) are in closed form on segments only")
     if cfg.output.fields:
         raise ConfigError("output.fields", "written for element.degree 1 only (XDMF stores vertex values)")
     if cfg.contact_quadrature == "vertex":

@@ -5,6 +5,7 @@ NAME = "map"
 DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = True  # its points are studies of their own: config/map.py reads its block
 VI = False
+LIMIT_ERROR = False
 GEOMETRY = True
 FIELDS = True
 DEGREES = (1, 2)

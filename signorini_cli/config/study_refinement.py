@@ -4,6 +4,7 @@ NAME = "refinement"
 DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = False  # not a map of studies
 VI = False  # solves the problem itself, not its Signorini limit
+LIMIT_ERROR = False
 GEOMETRY = True  # runs on gmsh and .msh meshes
 FIELDS = True  # writes output.fields
 DEGREES = (1, 2)  # the element degrees it runs

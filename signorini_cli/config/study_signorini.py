@@ -5,6 +5,7 @@ NAME = "signorini"
 DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = False
 VI = True  # solves the problem's Signorini VI, whose nodal bounds u_i <= 0 are P1 only
+LIMIT_ERROR = False
 GEOMETRY = False
 FIELDS = False
 DEGREES = (1,)

@@ -8,6 +8,7 @@ NAME = "epsilon_sweep"
 DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = False
 VI = True
+LIMIT_ERROR = False
 GEOMETRY = False
 FIELDS = False
 DEGREES = (1,)

@@ -8,6 +8,7 @@ NAME = "total_error"
 DOC = ""  # how the reference and `signorini init` describe it beside its name
 POINTS = False
 VI = True
+LIMIT_ERROR = True  # it measures u_S − u_h: the problem needs a manufactured Signorini solution
 GEOMETRY = False
 FIELDS = True
 DEGREES = (1,)

@@ -5,12 +5,13 @@ its module and one line below. The config layer asks these modules and never com
 Each module has NAME and DOC (a few words beside its name in the reference, or "").
 A problem module has KEYS (the problem keys it takes besides pde and method), SECTION (a schema.UnitSection
 of its own, or None; then also section(raw, path)), DEGREES (its element degrees), VECTOR (u has one component
-per coordinate), VI (it has a Signorini variational inequality; then also check_vi(problem, study_type)),
+per coordinate), VI (it has a Signorini variational inequality; then also check_vi(problem, study_unit)),
 problem(raw, path, dim) -> schema.Problem and check_config(cfg, raw) -> cfg (its rules across sections).
 A method module has PDES (the problems it is built for), SECTION (and section(raw, path)), UNUSED (top-level
 keys it refuses, e.g. the penalty's epsilon: key -> hint; to_dict leaves them out) and
 check_config(cfg, raw) -> cfg.
 A study type module has POINTS (a map of studies, config/map.py), VI (it solves the problem's VI),
+LIMIT_ERROR (it measures u_S − u_h against a manufactured Signorini solution),
 GEOMETRY (it runs on gmsh and .msh meshes), FIELDS (it writes output.fields), DEGREES, UNUSED (top-level keys
 it refuses: key -> hint), LIMIT ((required, optional) keys of its limit block, or None; then also
 parse_limit(raw, path, cfg)), SECTION and check_config(cfg, raw) -> cfg."""

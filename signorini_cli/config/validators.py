@@ -1,5 +1,6 @@
 """The generic checks every section's keys go through: known keys, numbers, integers, choices, expressions;
 each error names the key's dotted path."""
+import difflib
 import math
 
 from . import expressions
@@ -80,7 +81,10 @@ def string(value, path, empty=False):
 
 def choice(value, path, choices):
     if value not in choices:
-        raise ConfigError(path, f"{value!r} is not one of {', '.join(choices)}")
+        close = difflib.get_close_matches(str(value).replace("-", "_").lower(), [str(c) for c in choices],
+                                          n=1, cutoff=0.8)  # 0.8: unit_disk is not unit_square
+        hint = f" (did you mean {close[0]!r}?)" if close else ""  # theta-h: theta_h
+        raise ConfigError(path, f"{value!r} is not one of {', '.join(map(str, choices))}{hint}")
     return value
 
 

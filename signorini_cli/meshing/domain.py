@@ -20,6 +20,7 @@ class Domain:
     h_min: float
     n: int
     columns: dict = field(default_factory=dict)  # the mesh's own per-level table columns (gmsh/file kinds)
+    quadrature: tuple = None  # (data, errors): the Gauss degrees the level's data need, once checked (None: defaults)
 
     def facets(self, marker=CONTACT):
         """Local indices of the facets tagged `marker` (Γ_C by default; owned and ghost)."""

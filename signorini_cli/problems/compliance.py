@@ -41,9 +41,10 @@ def space(cfg, msh):
     return element.space(msh, cfg.element.degree)
 
 
-def errors(u_h, u_exact, h):
-    """{'L2', 'H1'}: ||u_ex − u_h||_{L2(Ω)} and the seminorm |u_ex − u_h|_{H1(Ω)}, MPI-reduced."""
-    return measure.errors(u_h, u_exact, h)
+def errors(u_h, u_exact, h, degree=None):
+    """{'L2', 'H1'}: ||u_ex − u_h||_{L2(Ω)} and the seminorm |u_ex − u_h|_{H1(Ω)}, MPI-reduced (`degree`: the
+    quadrature the data need, else the element's default for h)."""
+    return measure.errors(u_h, u_exact, h, degree)
 
 
 def positive_part(u, positive, h, eps):
@@ -96,8 +97,9 @@ def forms(cfg, domain, u_h, eps):
     V = u_h.function_space
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     rule = cfg.contact_quadrature
-    degree = rule if isinstance(rule, int) else QUADRATURE_DEGREE
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
+    data_degree = domain.quadrature[0] if domain.quadrature else QUADRATURE_DEGREE  # as the data need (posed)
+    degree = rule if isinstance(rule, int) else data_degree
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": data_degree})
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=domain.facet_tags,
                        metadata={"quadrature_degree": degree})(CONTACT)
     u_exact = exact_solution(cfg, msh, eps)

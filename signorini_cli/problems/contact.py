@@ -147,14 +147,15 @@ def _cone(u, opposite, zeta, beta):
 def positive_power(comm, values, points, beta, degree=1):
     """∫_Γc [w_h]_+^beta over the rank's owned Γ_C facets, summed over ranks, of the facet dof values
     (facets, k) of a function of `degree` at the facets' dof points (facets, k, 3): P1 in closed form (the
-    solve's own rule), P2 on segments cut at the zeros of its quadratic (kinked.on_facets)."""
+    solve's own rule), P2 with each facet cut at the zeros of its quadratic (kinked.on_facets)."""
     if not len(values):
         local = 0.0
     elif degree == 1:
         local = float(np.sum(measure.facet_sizes(points) * moments(values, beta)[0]))
     else:
         trace = measure.on_facets(values)
-        local = float(np.sum(kinked.on_facets(points[:, :2], lambda *a: psi(trace[0](*a), beta), [trace])))
+        local = float(np.sum(kinked.on_facets(measure.vertices(points, degree), lambda *a: psi(trace[0](*a), beta),
+                                              [trace])))
     return comm.allreduce(local, op=MPI.SUM)
 
 
@@ -430,17 +431,17 @@ class ContactTerm:
 
 
 def p2_integrals(points, w, beta, order):
-    """∫_F [w]_+^beta phi_i (order 1: (facets, 3)) or ∫_F [w]_+^beta phi_i phi_j (order 2: (facets, 3, 3)) on
-    the P2 segments F (dof points (facets, 3, 3): vertices, then the midpoint), w the P2 trace's dof values
-    (facets, 3) or an expression w(facets, x): each segment cut at the zeros of w (the quadratic's in closed
-    form), tanh-sinh on each piece (kinked.on_facets)."""
+    """∫_F [w]_+^beta phi_i (order 1: (facets, k)) or ∫_F [w]_+^beta phi_i phi_j (order 2: (facets, k, k)) on
+    the P2 facets F (dof points (facets, k, 3): vertices, then the edges' midpoints; k = 3 on segments, 6 on
+    triangles), w the P2 trace's dof values (facets, k) or an expression w(facets, x): each facet cut at the
+    zeros of w (the quadratic's in closed form), tanh-sinh on each piece (kinked.on_facets)."""
     trace = measure.on_facets(w)
 
     def integrand(facets, lam, x):
         phi = measure.p2_basis(lam)
         value = psi(trace[0](facets, lam, x), beta)[..., None] * phi
         return value if order == 1 else value[..., None] * phi[..., None, :]
-    return kinked.on_facets(np.ascontiguousarray(points[:, :2]), integrand, [trace])
+    return kinked.on_facets(np.ascontiguousarray(measure.vertices(points, 2)), integrand, [trace])
 
 
 def canonical(rule, u_fn, alpha, points):

@@ -77,7 +77,11 @@ def _pieces(breaks):
 def _quadratic_zeros(cuts, kink):
     """The zeros in (0, 1) of the quadratic through the kink's values at t = 0, 1/2, 1: (M, 2), nan if none."""
     m = len(cuts.facet)
-    p = kink(*cuts.at(np.arange(m), np.broadcast_to([0.0, 1.0, 0.5], (m, 3))))
+    return _roots(kink(*cuts.at(np.arange(m), np.broadcast_to([0.0, 1.0, 0.5], (m, 3)))))
+
+
+def _roots(p):
+    """The zeros in (0, 1) of the quadratics through the values p (M, 3) at t = 0, 1, 1/2: (M, 2), nan if none."""
     a, b, c = p[:, 0], 4 * p[:, 2] - 3 * p[:, 0] - p[:, 1], 2 * p[:, 0] + 2 * p[:, 1] - 4 * p[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         disc = b**2 - 4 * a * c
@@ -113,11 +117,49 @@ def _illinois(cuts, kink, rows, lo, hi, k_lo, k_hi):
     return np.where(np.abs(k_lo) <= np.abs(k_hi), lo, hi)
 
 
+LINEAR_B = 1e-12  # |c5| below this share of a kink's values: linear along the lines (round-off of a P1 trace)
+# the P2 nodes of a triangle in barycentric coordinates: its vertices, then the midpoints of the edges
+# opposite vertex 0, 1, 2 (the order of a facet's closure dofs, measure.contact_facet_dofs)
+P2_NODES = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0.5, 0.5], [0.5, 0, 0.5], [0.5, 0.5, 0]])
+
+
+def triangle_coefficients(values):
+    """(c0 .. c5) of w = c0 + c1 a + c2 b + c3 a² + c4 ab + c5 b², (a, b) = (lam_1, lam_2), through the values
+    (M, 6) at P2_NODES."""
+    v0, v1, v2, m0, m1, m2 = values.T
+    c1, c3 = 4 * m2 - 3 * v0 - v1, 2 * v0 + 2 * v1 - 4 * m2  # along b = 0
+    c2, c5 = 4 * m1 - 3 * v0 - v2, 2 * v0 + 2 * v2 - 4 * m1  # along a = 0
+    c4 = 4 * (m0 - v0) - 2 * (c1 + c2) - c3 - c5  # at the midpoint (1/2, 1/2)
+    return v0, c1, c2, c3, c4, c5
+
+
+def _tangents(points, kink):
+    """The positions a (M, 2) where a quadratic kink's zero curve is tangent to the lines of fixed a (the lines
+    of on_facets, along e2 = P2 − P0), nan if none: there ∂w/∂b = 0 and w = 0, and the integral along the
+    line has a square-root kink in a. On b = −(c2 + c4 a)/(2 c5), w is a quadratic in a. A kink linear in b
+    to round-off (|c5| <= LINEAR_B of its values: every P1 trace) has none."""
+    m = len(points)
+    lam = np.broadcast_to(P2_NODES, (m, 6, 3))
+    values = kink(np.arange(m), lam, np.einsum("mqk,mkx->mqx", lam, points))
+    c0, c1, c2, c3, c4, c5 = triangle_coefficients(values)
+    c5 = np.where(np.abs(c5) > LINEAR_B * np.abs(values).max(axis=1), c5, np.nan)
+    a = np.array([0.0, 1.0, 0.5])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = -(c2[:, None] + c4[:, None] * a) / (2 * c5[:, None])  # (M, 3)
+        w = c0[:, None] + c1[:, None] * a + c2[:, None] * b + c3[:, None] * a**2 + c4[:, None] * a * b \
+            + c5[:, None] * b**2
+        zeros = _roots(np.where(np.isfinite(w), w, 0.0))
+        b_zero = -(c2[:, None] + c4[:, None] * zeros) / (2 * c5[:, None])
+        inside = np.isfinite(w).all(axis=1)[:, None] & (b_zero >= 0) & (b_zero <= 1 - zeros)
+    return np.where(inside, zeros, np.nan)
+
+
 def on_facets(points, integrand, kinks):
     """∫_F integrand over each facet F (segments or triangles, points (M, n+1, 3)), kinks as integrate's.
     Triangles by collapsed coordinates x = P0 + a e1 + b e2, b = t (1 - a): the lines of fixed a by
     integrate, and in a by the same rule between the zeros of the kinks along the edges b = 0 and
-    a + b = 1 (where a kink's curve leaves a line through its end, the integral along it kinks in a)."""
+    a + b = 1 (where a kink's curve leaves a line through its end, the integral along it kinks in a) and,
+    for a quadratic kink, where its curve is tangent to a line (_tangents)."""
     m, k = points.shape[:2]
     facet, eye = np.arange(m), np.broadcast_to(np.eye(k), (m, k, k))
     if k == 2:
@@ -126,7 +168,8 @@ def on_facets(points, integrand, kinks):
         return found * lengths.reshape((m,) + (1,) * (found.ndim - 1))
     edges = [Cuts(facet, eye[:, 0], eye[:, 1], points[:, 0], points[:, 1]),
              Cuts(facet, eye[:, 2], eye[:, 1], points[:, 2], points[:, 1])]
-    rows, a, width = _pieces(_breaks(edges, kinks))  # a (P, q): the lines' positions
+    breaks = [_breaks(edges, kinks)] + [_tangents(points, kink) for kink, polynomial in kinks if polynomial]
+    rows, a, width = _pieces(np.sort(np.concatenate(breaks, axis=1), axis=1))  # a (P, q): the lines' positions
     line_facet, a = np.repeat(rows, a.shape[1]), a.ravel()
     zero = np.zeros_like(a)
     e1, e2 = points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]

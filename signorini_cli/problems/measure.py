@@ -16,11 +16,13 @@ def integrate(expr, measure):
     return comm.allreduce(fem.assemble_scalar(fem.form(expr * measure)), op=MPI.SUM)
 
 
-def errors(u_h, u_exact, h):
+def errors(u_h, u_exact, h, degree=None):
     """{'L2': ||u − u_h||_{L2(Ω)}, 'H1': |u − u_h|_{H1(Ω)} (the seminorm, as in the paper)}, of a scalar or
-    vector u_h; h, the mesh's size (Domain.h), and u_h's degree set the quadrature (element.error_degree)."""
+    vector u_h; the quadrature `degree` the data need (posed.Profile), else by h, the mesh's size (Domain.h),
+    and u_h's degree (element.error_degree)."""
     msh = u_h.function_space.mesh
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": error_degree(u_h.function_space, h)})
+    degree = error_degree(u_h.function_space, h) if degree is None else degree
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
     e = u_h - u_exact
     l2, h1 = integrate_together(msh, [ufl.inner(e, e), ufl.inner(ufl.grad(e), ufl.grad(e))], dx)
     return {"L2": np.sqrt(abs(l2)), "H1": np.sqrt(abs(h1))}
@@ -39,7 +41,7 @@ def integrate_together(msh, exprs, dx):
 
 def error_degree(V, h):
     """The quadrature degree of the error integrals of a function in V on a mesh of size h."""
-    return element.error_degree(element.degree_of(V), h)
+    return element.error_degree(element.degree_of(V), h, V.mesh.topology.dim)
 
 
 def product_degree(V):
@@ -52,7 +54,7 @@ def difference_norms(u_h, u):
     V = u.function_space
     dx = ufl.Measure("dx", domain=V.mesh, metadata={"quadrature_degree": product_degree(V)})
     e = u - u_h
-    return {"L2": np.sqrt(abs(integrate(e**2, dx))),
+    return {"L2": np.sqrt(abs(integrate(ufl.inner(e, e), dx))),
             "H1": np.sqrt(abs(integrate(ufl.inner(ufl.grad(e), ufl.grad(e)), dx)))}
 
 
@@ -90,8 +92,8 @@ def contact_errors(comm, points, w_h, w, eps, alpha, h1):
 
 
 def on_facets(w):
-    """(w(facets, lam, x), polynomial) of facet dof values (a P1 trace, or P2 on segments: vertices, then the
-    midpoint) or of an expression w(facets, x)."""
+    """(w(facets, lam, x), polynomial) of facet dof values (a P1 trace, or P2: vertices, then the midpoints of
+    the edges, as contact_facet_dofs orders them) or of an expression w(facets, x)."""
     if callable(w):
         return (lambda facets, lam, x: np.broadcast_to(w(facets, x), x.shape[:-1])), False
     values = np.asarray(w)
@@ -104,9 +106,19 @@ def on_facets(w):
 
 
 def p2_basis(lam):
-    """The P2 basis on a segment at barycentric coordinates lam (..., 2): its vertices', then its midpoint's."""
-    l0, l1 = lam[..., 0], lam[..., 1]
-    return np.stack((l0 * (2 * l0 - 1), l1 * (2 * l1 - 1), 4 * l0 * l1), axis=-1)
+    """The P2 basis at barycentric coordinates lam (..., n+1) of a segment or a triangle: its vertices', then
+    its edges' midpoints' (a triangle's edge k opposite vertex k, as a tetrahedron's facet lists them)."""
+    vertices = [lam[..., i] * (2 * lam[..., i] - 1) for i in range(lam.shape[-1])]
+    edges = [(0, 1)] if lam.shape[-1] == 2 else [(1, 2), (0, 2), (0, 1)]
+    return np.stack(vertices + [4 * lam[..., i] * lam[..., j] for i, j in edges], axis=-1)
+
+
+P2_VERTICES = {3: 2, 6: 3}  # P2 dofs on a facet -> its vertices: a segment's, a triangle's
+
+
+def vertices(points, degree):
+    """The facets' vertices among their dof points (facets, k, 3), vertices first (contact_facet_dofs)."""
+    return points if degree == 1 else points[:, :P2_VERTICES[points.shape[1]]]
 
 
 def energy(u_h, f, g, eps, dx, ds_c, penalty):
@@ -120,7 +132,7 @@ def energy(u_h, f, g, eps, dx, ds_c, penalty):
 
 def penetration(u_h, contact_dofs):
     """The largest penetration max_{Γ_C} [u_h]_+: for P1 attained at a vertex of Γ_C (contact_dofs, any
-    shape); for P2 the maximum of each Γ_C segment's quadratic (contact_dofs from contact_facet_dofs)."""
+    shape); for P2 the maximum of each Γ_C facet's quadratic (contact_dofs from contact_facet_dofs)."""
     values = u_h.x.array[contact_dofs]
     if element.degree_of(u_h.function_space) == 2 and values.size:
         values = quadratic_max(values)
@@ -130,7 +142,7 @@ def penetration(u_h, contact_dofs):
 
 def vertex_penetration(comm, values, degree=1):
     """max [w_h]_+ over the Γ_C facets' dof values (facets, k) of every rank: exact for P1 (a vertex's) and
-    for P2 on segments (each segment's quadratic's maximum)."""
+    for P2 (each facet's quadratic's maximum)."""
     if degree == 2 and values.size:
         values = quadratic_max(values)
     local = float(values.max()) if values.size else 0.0
@@ -139,29 +151,30 @@ def vertex_penetration(comm, values, degree=1):
 
 def vertex_contact_measure(comm, values, points, degree=1):
     """|{w_h > 0} ∩ Γ_C| from the dof values (facets, k) and points (facets, k, 3) of the rank's owned Γ_C
-    facets: exact for P1 (positive_fraction) and for P2 on segments (quadratic_positive_fraction)."""
+    facets: exact for P1 (positive_fraction) and for P2 (p2_positive_measure)."""
     if not len(values):
         return comm.allreduce(0.0, op=MPI.SUM)
     if degree == 2:
-        fraction, vertices = quadratic_positive_fraction(values), points[:, :2]
-    else:
-        fraction, vertices = positive_fraction(values), points
-    return comm.allreduce(float(np.sum(facet_sizes(vertices) * fraction)), op=MPI.SUM)
+        return comm.allreduce(float(np.sum(p2_positive_measure(values, points))), op=MPI.SUM)
+    return comm.allreduce(float(np.sum(facet_sizes(points) * positive_fraction(values))), op=MPI.SUM)
 
 
 def contact_measure(u_h, facet_dofs, facet_points):
-    """|{u_h > 0} ∩ Γ_C|, exact for P1 and P2 on segments: on each Γ_C facet (its dofs and their points,
-    vertices first) the positive part of a linear function, or of a quadratic on a segment, covers a
-    fraction of the facet known in closed form."""
-    values = u_h.x.array[facet_dofs]
-    if not len(values):
-        return u_h.function_space.mesh.comm.allreduce(0.0, op=MPI.SUM)
-    if element.degree_of(u_h.function_space) == 2:
-        fraction, vertices = quadratic_positive_fraction(values), facet_points[:, :2]
-    else:
-        fraction, vertices = positive_fraction(values), facet_points
-    local = float(np.sum(facet_sizes(vertices) * fraction))
-    return u_h.function_space.mesh.comm.allreduce(local, op=MPI.SUM)
+    """|{u_h > 0} ∩ Γ_C|, exact for P1 and P2: on each Γ_C facet (its dofs and their points, vertices first)
+    the positive part of a linear function covers a fraction of the facet known in closed form, that of a
+    quadratic p2_positive_measure."""
+    return vertex_contact_measure(u_h.function_space.mesh.comm, u_h.x.array[facet_dofs], facet_points,
+                                  element.degree_of(u_h.function_space))
+
+
+def p2_positive_measure(values, points):
+    """|{w > 0}| on each P2 facet from its dof values (facets, k) and points (facets, k, 3): on a segment
+    in closed form, on a triangle by kinked.on_facets (cut at the conic w = 0 and where it is tangent to the
+    lines of the rule: the length along each line in closed form, smooth between the cuts)."""
+    if values.shape[1] == 3:
+        return facet_sizes(points[:, :2]) * quadratic_positive_fraction(values)
+    trace = on_facets(values)
+    return kinked.on_facets(points[:, :3], lambda *a: (trace[0](*a) > 0).astype(float), [trace])
 
 
 def quadratic(values):
@@ -171,6 +184,25 @@ def quadratic(values):
 
 
 def quadratic_max(values):
+    """max of each P2 facet's quadratic from its dof values: segments (facets, 3), triangles (facets, 6)."""
+    return segment_max(values) if values.shape[1] == 3 else triangle_max(values)
+
+
+def triangle_max(values):
+    """max over each triangle of its quadratic (values at kinked.P2_NODES): the largest of its edges' maxima
+    and of its value at a stationary point inside, where ∇w = 0 (a 2 × 2 system in (a, b))."""
+    v0, v1, v2, m0, m1, m2 = values.T
+    edges = [segment_max(np.stack(e, axis=1)) for e in ((v1, v2, m0), (v0, v2, m1), (v0, v1, m2))]
+    c0, c1, c2, c3, c4, c5 = kinked.triangle_coefficients(values)
+    det = 4 * c3 * c5 - c4**2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a, b = (c4 * c2 - 2 * c5 * c1) / det, (c4 * c1 - 2 * c3 * c2) / det
+    inside = (det != 0) & (a >= 0) & (b >= 0) & (a + b <= 1)
+    stationary = np.where(inside, c0 + c1 * a + c2 * b + c3 * a**2 + c4 * a * b + c5 * b**2, -np.inf)
+    return np.max(np.stack(edges + [stationary]), axis=0)
+
+
+def segment_max(values):
     """max over [0, 1] of each segment's quadratic: its end values, or its vertex inside when concave."""
     a, B, C = quadratic(values)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -1,5 +1,7 @@
 """Problems posed right, or refused before solving: the data finite wherever the solve evaluates them,
 and a manufactured Signorini solution that is one (u_S <= 0, ∂_n u_S <= 0, u_S ∂_n u_S = 0 on Γ_C)."""
+from dataclasses import dataclass
+
 import numpy as np
 from mpi4py import MPI
 
@@ -9,7 +11,7 @@ from dolfinx import fem
 
 from ..config import ConfigError, expressions
 from ..meshing.meshes import CONTACT, facet_vertices
-from . import compliance, elasticity
+from . import compliance, elasticity, element
 
 # One-sided difference step for ∂_n u_S (domains are O(1)): its truncation error δ|u''|/2 and round-off
 # 1e-16|u|/δ both stay near 1e-7 relative, far below SIGN_TOL.
@@ -32,14 +34,16 @@ def check(cfg, domain, u_exact, eps_value, coarsest=None):
     msh = domain.mesh
     if cfg.problem.exact is not None:
         _finite(msh, "problem.exact", cfg.problem.exact.text, _exact_at_vertices(cfg, msh, eps_value))
-    if coarsest is not None:
-        _check_cells(cfg, coarsest.mesh, eps_value)
+    found = _check_cells(cfg, coarsest, eps_value) if coarsest is not None else None
     if cfg.problem.exact_solves == "signorini":
         signorini_conditions(cfg, domain)
+    return found
 
 
-def _check_cells(cfg, msh, eps_value):
-    """The scalar data finite at the cells' quadrature points of msh, and their load settled."""
+def _check_cells(cfg, coarsest, eps_value):
+    """The scalar data finite at the cells' quadrature points of the coarsest mesh, and their load settled;
+    their Profile."""
+    msh = coarsest.mesh
     V = compliance.space(cfg, msh)
     v = ufl.TestFunction(V)
     if cfg.problem.exact is not None:
@@ -50,12 +54,16 @@ def _check_cells(cfg, msh, eps_value):
         _finite(msh, "problem.exact", f"∇({text})", _at_cell_points(msh, ufl.grad(u_exact)))
         _settles(V, "problem.exact", f"f = -Δ({text})", compliance.on_mesh(f, msh) * v,
                  ufl.inner(ufl.grad(u_exact), ufl.grad(v)))
-        return
+        numpy_exact = compliance.numpy_exact(cfg, msh.geometry.dim)
+        return profile(cfg, coarsest, compliance.on_mesh(f, msh), u_exact,
+                       lambda points: np.asarray(numpy_exact(points, eps_value), dtype=float)[..., None]
+                       * np.ones(points.shape[:-1] + (1,)))
     f, g = compliance.data(cfg, msh, eps_value, None, ufl.FacetNormal(msh))
     for key, value in (("f", f), ("g", g)):
         if getattr(cfg.problem, key) is not None:
             _finite(msh, f"problem.{key}", getattr(cfg.problem, key).text, _at_cell_points(msh, value))
     _settles(V, "problem.f", cfg.problem.f.text, compliance.on_mesh(f, msh) * v, None)
+    return profile(cfg, coarsest, compliance.on_mesh(f, msh), None, None)
 
 
 def _settles(V, path, text, load, balance):
@@ -108,9 +116,16 @@ def check_elastic(cfg, domain, u_exact, eps_value, coarsest=None):
         _finite(msh, "problem.exact", f"∇(({texts}))", _at_cell_points(msh, ufl.grad(u_c)))
         V = elasticity.space(cfg, msh)
         v = ufl.TestFunction(V)
-        _settles(V, "problem.exact", f"f = -div σ(({texts}))",
-                 ufl.inner(-ufl.div(elasticity.sigma(u_c, mu, lmbda)), v),
+        f = -ufl.div(elasticity.sigma(u_c, mu, lmbda))
+        _settles(V, "problem.exact", f"f = -div σ(({texts}))", ufl.inner(f, v),
                  ufl.inner(elasticity.sigma(u_c, mu, lmbda), elasticity.strain(v)))
+
+        def components(points):
+            variables = dict(zip(("x", "y", "z"), np.moveaxis(points, -1, 0)[:msh.geometry.dim]), eps=eps_value)
+            return np.stack([np.broadcast_to(c(variables, functions), points.shape[:-1])
+                             for c in cfg.problem.exact], axis=-1)
+        return profile(cfg, coarsest, f, u_c, components)
+    return None
 
 
 def _exact_at_vertices(cfg, msh, eps_value):
@@ -217,3 +232,100 @@ def _cell_centres(msh, cells):
 
 def _point(point, dim):
     return "(" + ", ".join(f"{c:.4g}" for c in point[:dim]) + ")"
+
+
+# --- the quadrature degree the data need --------------------------------------------------------------
+
+CANDIDATES = (6, 8, 10, 12, 14, 16)  # the Gauss degrees a level's data integrals may take
+REFERENCE_DEGREE = 20
+DATA_TOL = 1e-10  # the relative change against REFERENCE_DEGREE a level's load and error integrals may keep
+PROFILE_VALUES = 1 << 20  # values evaluated at once (8 MB; all rules' points of a cell: ~260 in 2-D, ~3300 in 3-D)
+
+
+@dataclass(frozen=True)
+class Profile:
+    """How the data's integrals settle with the Gauss degree, measured once on a family's coarsest mesh (size
+    h0): the relative change of the load (per cell and basis function) and of the error integrals of u_ex's
+    interpolant (L2 and H1) at each candidate degree against REFERENCE_DEGREE."""
+    h0: float
+    load: dict
+    error: dict
+    k: int  # the element degree
+
+    def degrees(self, h, load_low, error_low):
+        """(load degree, error degree) of a level of size h: the lowest candidates, not below the defaults,
+        whose change scaled to h as a Gauss rule's error on smooth data, (h/h0)^(q+1) for the load and
+        (h/h0)^(q-k) relative to an error integral of order h^(2k+2), stays below DATA_TOL."""
+        def lowest(changes, low, power):
+            fits = [q for q in CANDIDATES if q >= low and changes.get(q, 0.0) * (h / self.h0) ** power(q) <= DATA_TOL]
+            return max(low, fits[0] if fits else CANDIDATES[-1])
+        return (lowest(self.load, load_low, lambda q: q + 1),
+                lowest(self.error, error_low, lambda q: max(q - self.k, 1)) if self.error else error_low)
+
+
+def profile(cfg, coarsest, f, exact, components):
+    """The Profile of the data on the family's coarsest Domain: f (UFL, the load's density), and with `exact`
+    (UFL u_ex, None for a data-only scene) its interpolant's errors; `components(points)`: u_ex in numpy,
+    (..., c). All candidate rules at once, by chunks of cells (PROFILE_VALUES: the peak memory stays a chunk's)."""
+    msh = coarsest.mesh
+    V = element.space(msh, cfg.element.degree)
+    cell_type = basix.cell.string_to_type(msh.topology.cell_name())
+    rules = {q: basix.make_quadrature(cell_type, q) for q in CANDIDATES + (REFERENCE_DEGREE,)}
+    X = np.concatenate([X for X, _ in rules.values()])
+    parts = [ufl.as_vector([f]) if not ufl.shape(f) else f]
+    if exact is not None:
+        u = ufl.as_vector([exact]) if not ufl.shape(exact) else exact
+        parts += [u, ufl.as_vector([ufl.grad(u)[i, j] for i in range(len(u)) for j in range(msh.geometry.dim)])]
+    expression = fem.Expression(ufl.as_vector([c for p in parts for c in p]), X)
+    owned = msh.topology.index_map(msh.topology.dim).size_local
+    load_change, load_scale = {q: 0.0 for q in rules}, 0.0
+    sums = {q: np.zeros(2) for q in rules}
+    chunk = max(1, PROFILE_VALUES // (len(X) * sum(len(p) for p in parts)))
+    for start in range(0, owned, chunk):
+        cells = np.arange(start, min(start + chunk, owned), dtype=np.int32)
+        found = _chunk(V, rules, expression.eval(cells).reshape(len(cells), len(X), -1), [len(p) for p in parts],
+                       cells, components if exact is not None else None)
+        ref_load = found[REFERENCE_DEGREE][0]
+        load_scale = max(load_scale, float(np.abs(ref_load).max(initial=0.0)))
+        for q, (load, errors) in found.items():
+            load_change[q] = max(load_change[q], float(np.abs(load - ref_load).max(initial=0.0)))
+            sums[q] += errors
+    comm = msh.comm
+    scale = max(comm.allreduce(load_scale, op=MPI.MAX), 1e-300)
+    sums = {q: comm.allreduce(s, op=MPI.SUM) for q, s in sums.items()}
+    ref = sums[REFERENCE_DEGREE]
+    error = {q: float(np.max(np.abs(sums[q] - ref) / np.where(ref > 0, ref, np.inf))) for q in CANDIDATES}
+    return Profile(coarsest.h, {q: comm.allreduce(load_change[q], op=MPI.MAX) / scale for q in CANDIDATES},
+                   error if exact is not None else {}, cfg.element.degree)
+
+
+def _chunk(V, rules, values, sizes, cells, components):
+    """{q: (the cells' load vectors (cells, dofs, f), their error integrals (L2², H1²) or zeros)} of one chunk
+    of cells on affine simplices: values (cells, points, f | u_ex | ∇u_ex) at every rule's points in turn."""
+    msh = V.mesh
+    tdim = msh.topology.dim
+    vertices = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, tdim + 1)[cells]][..., :tdim]
+    J = np.swapaxes(vertices[:, 1:] - vertices[:, :1], 1, 2)  # (cells, d, d): x = x0 + J X
+    det = np.abs(np.linalg.det(J))
+    X = np.concatenate([X for X, _ in rules.values()])
+    tab = V.element.basix_element.tabulate(1, X)[..., 0]  # (1 + d, points, dofs)
+    if components is not None:
+        cell_dofs = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[cells]
+        nodal = components(V.tabulate_dof_coordinates()[cell_dofs])  # (cells, dofs, c)
+        inverse = np.linalg.inv(J)
+    f_end, u_end = sizes[0], sizes[0] + (sizes[1] if len(sizes) > 1 else 0)
+    start, found = 0, {}
+    for q, (Xq, wq) in rules.items():
+        at = slice(start, start + len(Xq))
+        start += len(Xq)
+        load = np.einsum("cpf,pk,p,c->ckf", values[:, at, :f_end], tab[0, at], wq, det, optimize=True)
+        errors = np.zeros(2)
+        if components is not None:
+            e = np.einsum("pk,ckf->cpf", tab[0, at], nodal, optimize=True) - values[:, at, f_end:u_end]
+            reference = np.einsum("jpk,ckf->cpfj", tab[1:, at], nodal, optimize=True)  # ∇ in reference coordinates
+            grad_e = np.einsum("cji,cpfj->cpfi", inverse, reference, optimize=True).reshape(len(cells), len(Xq), -1) \
+                - values[:, at, u_end:]
+            errors = np.array([np.einsum("cpf,p,c->", e**2, wq, det, optimize=True),
+                               np.einsum("cpg,p,c->", grad_e**2, wq, det, optimize=True)])
+        found[q] = (load, errors)
+    return found

@@ -4,11 +4,11 @@ import contextlib
 import dataclasses
 
 from ..meshing import meshes
-from . import compliance, elasticity, posed, vi
+from . import compliance, elastic_vi, elasticity, element, posed, vi
 
 # cfg.problem.pde -> the compliance problem's module, and the module of its ε → 0 limit (the Signorini VI)
 PROBLEMS = {"poisson": compliance, "elasticity": elasticity}
-LIMITS = {"poisson": vi}
+LIMITS = {"poisson": vi, "elasticity": elastic_vi}
 
 
 def problem_of(cfg, limit=False):
@@ -21,20 +21,20 @@ def problem_of(cfg, limit=False):
 POSED = {"poisson": posed.check, "elasticity": posed.check_elastic}
 
 
-_passed = None  # within checked_once(): the (mesh family, data) whose data passed on the family's cells
+_passed = None  # within checked_once(): (mesh family, data) -> the data's Profile on the family's coarsest mesh
 
 
 @contextlib.contextmanager
 def checked_once():
-    """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points, and
-    their load for settling, once per mesh family, on its coarsest mesh (what a check at interior points can
-    find there, it finds on any level); at the vertices and on Γ_C on every level (where a finer level's new
-    vertices may meet a singularity)."""
+    """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points, their
+    load for settling and their Profile taken, once per mesh family, on its coarsest mesh (what a check at
+    interior points can find there, it finds on any level); at the vertices and on Γ_C on every level (where
+    a finer level's new vertices may meet a singularity)."""
     global _passed
     if _passed is not None:
         yield
         return
-    _passed = set()
+    _passed = {}
     try:
         yield
     finally:
@@ -43,15 +43,18 @@ def checked_once():
 
 def check_posed(cfg, domain, u_exact, eps_value):
     """ConfigError (on every rank) when the level's problem is not posed right: every path that solves calls
-    it before its first solve on a mesh (refinement levels, map points, the VI, ε-sweeps, total error)."""
+    it before its first solve on a mesh (refinement levels, map points, the VI, ε-sweeps, total error).
+    Returns the level's quadrature degrees (data, errors) the data need (posed.Profile.degrees)."""
     key = (_family(cfg), _data(cfg.problem, eps_value))
     coarsest = None
     if _passed is None or key not in _passed:  # the cells' checks: on the family's coarsest mesh
         first = cfg.mesh.levels[0]
         coarsest = domain if domain.n == first else meshes.build(cfg.mesh, cfg.contact, first, domain.mesh.comm)
-    POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, coarsest=coarsest)
+    found = POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, coarsest=coarsest)
     if _passed is not None:
-        _passed.add(key)
+        found = _passed.setdefault(key, found)
+    low = (compliance.QUADRATURE_DEGREE, element.error_degree(cfg.element.degree, domain.h, domain.mesh.topology.dim))
+    return low if found is None else found.degrees(domain.h, *low)
 
 
 def _family(cfg):

@@ -142,3 +142,8 @@ def _assembled(form):
     vector = fem_petsc.assemble_vector(fem.form(form))
     vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     return vector
+
+
+def model_differences(cfg, domain, u_eps, u_S, ds_c):
+    """The model error of an ε-sweep on `domain` (measure.model_differences, its penetration at the Γ_C dofs)."""
+    return measure.model_differences(u_eps, u_S, ds_c, contact_dofs(u_eps.function_space, domain))

@@ -60,6 +60,14 @@ COLUMNS = {
     "contact_measure": ("length^(d-1)", "measure of the discrete contact set on Γ_C"),
     "contact_force": ("1", "(1/ε) ∫_Γc [u_h]_+^α, the total contact force: P1 in closed form (the solve's rule), "
                            "P2 cut at the zeros of its quadratic, tanh-sinh on each piece"),
+    "half_width": ("length", "the contact half-width: largest distance of the contact set's edge from its centre"),
+    "half_width_hertz": ("length", "Hertz's half-width under the measured contact force"),
+    "half_width_err": ("1", "|half_width - half_width_hertz| / half_width_hertz"),
+    "peak_pressure": ("1", "the largest nodal pressure λ_i/∫φ_i on Γ_C, λ_i = (1/ε)∫[u_h·n - g0]_+^α φ_i"),
+    "peak_pressure_hertz": ("1", "Hertz's peak pressure under the measured contact force"),
+    "peak_pressure_err": ("1", "|peak_pressure - peak_pressure_hertz| / peak_pressure_hertz"),
+    "force_hertz": ("1", "Hertz's force for the measured half-width"),
+    "force_err": ("1", "|contact_force - force_hertz| / force_hertz"),
     "contact_nodes": ("1", "vertices of Γ_C in contact (the Signorini inequality's active set)"),
     "pressure_max": ("1", "the largest contact pressure on Γ_C"),
     "pressure_L2": ("1", "the contact pressure's error in L2(Γ_C)"),
@@ -88,6 +96,10 @@ COLUMNS = {
     "p": ("1", "the exponent of ε = θ h^p"),
     "levels": ("1", "levels the sub-study solved"),
     "norm": ("", "the error norm of the row"),
+    "x": ("length", "the node's coordinate along Γ_C (2-D: along the tangent of its mean normal)"),
+    "r": ("length", "the node's distance from the contact set's centre across Γ_C's mean normal (3-D)"),
+    "pressure": ("1", "the contact pressure (1/ε)[w_h]_+^α at the node, w = u (scalar) or u·n - g0 (elasticity)"),
+    "pressure_exact": ("1", "(1/ε)[w_ex]_+^α of the exact solution at the node"),
     "error": ("1", "the error in that norm"),
 }
 TABLES = {
@@ -96,6 +108,7 @@ TABLES = {
     "fitted": "per mesh and α: the slope of log(model error) against log ε (fitted.csv)",
     "reference": "per mesh: the Signorini solution u_Sh the sweep is measured against (reference.csv)",
     "studies": "each sub-study's rate table, as the rates.csv in its folder",
+    "pressure": "the contact pressure at the Γ_C nodes of every level (pressure.csv), sorted along Γ_C",
 }
 LEVEL = ("the level's row of /table as attributes (units: the /table dataset of the same name); measured_<norm>: "
          "the error as measured, also where the level did not converge")

@@ -34,6 +34,8 @@ def number(value, digits):
     """$2.303\\times10^{-2}$ (no package needed; 10^{0} too: one format per column), inf and nan as text."""
     if not math.isfinite(value):
         return escape(str(value))
+    if value == 0:
+        return "$0$"
     mantissa, exponent = f"{value:.{digits}e}".split("e")
     return rf"${mantissa}\times10^{{{int(exponent)}}}$"
 
@@ -121,6 +123,9 @@ def text_width(text):
     return sum(GLYPH_PT.get(c, 7.5 if c.isupper() or c in "mw" else 5.3) for c in text)
 
 
+SCRIPT = re.compile(r"[_^](\{[^{}]*(?:\{[^{}]*\}[^{}]*)*\}|\\[A-Za-z]+|[A-Za-z0-9])")  # at 7 pt (0.8: margin)
+
+
 def cell_width(cell):
     """Estimated width of a cell this module wrote: a number, a rate, an integer or escaped text."""
     match = re.fullmatch(r"\$(-?[\d.]+)(?:\\times10\^\{(-?\d+)\})?\$", cell)
@@ -128,17 +133,22 @@ def cell_width(cell):
         mantissa, exponent = match.groups()
         power = 12.2 + 10.0 + 0.7 * text_width(exponent) + (4.4 if "-" in exponent else 0.0) if exponent else 0
         return text_width(mantissa) + (4.4 if mantissa.startswith("-") else 0.0) + power
-    plain = re.sub(r"\\(texttt|mathrm|textit|emph)\b", "", cell)  # fonts: their argument counts
+    return _plain_width(SCRIPT.sub("", cell)) + 0.8 * sum(map(_plain_width, SCRIPT.findall(cell)))
+
+
+def _plain_width(cell):
+    plain = re.sub(r"\\(texttt|mathrm|textit|emph|max|min|log)\b", "", cell)  # fonts: their argument counts
     plain = re.sub(r"\\[A-Za-z]+(\{\})?|\\.", "x", plain)  # a symbol or an escaped character: one glyph
     return text_width(re.sub(r"[{}$^_]", "", plain))
 
 
 # --- the table ------------------------------------------------------------------------------------
 
-def table(columns, groups, caption, key, rows_count):
+def table(columns, groups, caption, key, rows_count, align=None):
     """A `table` float (booktabs) of `columns` [(header, cells)] whose trailing columns pair up under
     `groups` [(title, 2)] super-columns; laid out to fit \\textwidth: at the largest font size that
-    fits, else as stacked tabulars that repeat the first column, each sized alike."""
+    fits, else split by norms: stacked tabulars that repeat the columns before them, each sized alike;
+    `align`: the columns' alignment (default: all right)."""
     size, parts = _plan(_units(columns, groups))
     if size == "" and len(parts) == 1:
         why = "fits \\textwidth at the normal size"
@@ -149,19 +159,22 @@ def table(columns, groups, caption, key, rows_count):
     lines = [f"% layout: {why}", r"\begin{table}", r"\centering", r"\caption{" + caption + "}",
              rf"\label{{{key}}}"] + ([size] if size else [])  # the caption at the text's size
     lines.append(rf"\setlength{{\tabcolsep}}{{{TABCOLSEP_PT:g}pt}}")
+    letters = {id(column): letter for column, letter in zip(columns, align or "r" * len(columns))}
     for k, part in enumerate(parts):
         if k:
             lines.append(r"\par\medskip")
-        lines += _tabular(part, rows_count)
+        lines += _tabular(part, rows_count, letters)
     return "\n".join(lines + [r"\end{table}"]) + "\n"
 
 
 def _units(columns, groups):
-    """What stays together: a single column (title None) or a super-column's pair."""
-    n_single = len(columns) - 2 * len(groups)
-    units = [(None, [column]) for column in columns[:n_single]]
-    pairs = columns[n_single:]
-    return units + [(title, pairs[2 * k:2 * k + 2]) for k, (title, _) in enumerate(groups)]
+    """What stays together: a single column (title None) or a super-column's columns."""
+    n_single = len(columns) - sum(n for _, n in groups)
+    units, at = [(None, [column]) for column in columns[:n_single]], n_single
+    for title, n in groups:
+        units.append((title, columns[at:at + n]))
+        at += n
+    return units
 
 
 def _unit_width(unit):
@@ -183,7 +196,12 @@ def _plan(units):
     for size, scale in SIZES:
         if _fits(sum(widths), scale):
             return size, [units]
-    key, rest = units[0], list(zip(units[1:], widths[1:]))
+    n_key = next((k for k, (title, _) in enumerate(units) if title), 1)  # split by norms: the rest repeated
+    if not all(_fits(sum(widths[:n_key]) + w, SIZES[-1][1]) for w in widths[n_key:]):
+        n_key = 1  # too many columns before the norms to repeat: the first alone
+    key = (None, [c for _, cols in units[:n_key] for c in cols])
+    units, widths = [key] + units[n_key:], [sum(widths[:n_key])] + widths[n_key:]
+    rest = list(zip(units[1:], widths[1:]))
     for size, scale in SIZES[1:]:
         if all(_fits(widths[0] + w, scale) for _, w in rest):
             break
@@ -196,13 +214,13 @@ def _plan(units):
     return size, parts
 
 
-def _tabular(units, rows_count):
+def _tabular(units, rows_count, letters):
     columns = [column for _, cols in units for column in cols]
-    lines = [r"\begin{tabular}{" + "r" * len(columns) + "}", r"\toprule"]
+    lines = [r"\begin{tabular}{" + "".join(letters[id(c)] for c in columns) + "}", r"\toprule"]
     if any(title for title, _ in units):
         head, rules, at = [], [], 1
         for title, cols in units:
-            head.append(rf"\multicolumn{{{len(cols)}}}{{c}}{{{title}}}" if title else "")  # a single: no title
+            head.append(rf"\multicolumn{{{len(cols)}}}{{c}}{{{title}}}" if title else " & " * (len(cols) - 1))
             if title:
                 rules.append(rf"\cmidrule(lr){{{at}-{at + len(cols) - 1}}}")
             at += len(cols)

@@ -7,7 +7,8 @@ from pathlib import Path
 from ..record import csvfile
 from ..studies import rate_map
 from ..system import files
-from . import plots
+from ..config import names
+from . import latex, plots
 
 MAP_FILE = "map.csv"
 TERMINAL_WIDTH = 120
@@ -29,8 +30,10 @@ def write(folder, rows, varied, draw=True):
              "map.tex": latex_table(rows, varied, shown), "map.md": markdown_table(rows, varied, shown)}
     files.replace_all([(folder / name, lambda path, text=text: path.write_text(text)) for name, text in texts.items()])
     written = [folder / name for name in texts]
-    if draw:
-        written += figures(folder, rows, varied, shown)
+    if draw:  # heat maps for every norm with a verdict somewhere, rate lines for those shown
+        judged = [n for n in norms if any(r.get(f"verdict_{n}") not in (None, "", "no rate", "not covered")
+                  for r in rows)]
+        written += figures(folder, rows, varied, shown, judged)
     return written
 
 
@@ -98,7 +101,8 @@ def point_line(k, count, row):
     values = ", ".join(f"{key}={_cell(row[key])}" for key in row if key in _varied(row))
     rates = ", ".join(f"{n} {rate_cell(row, n)} {_cell(row.get(f'verdict_{n}'))}" for n in norms)
     status = "" if row["status"] == "complete" else f" [{row['status']}]"
-    return f"point {k + 1}/{count} ({values}): {rates}; {float(row['time_s']):.1f} s{status}"[:TERMINAL_WIDTH]
+    # numbered from 0 like the map's table, its folders and --points: "point 3 of 0-3"
+    return f"point {k} of 0-{count - 1} ({values}): {rates}; {float(row['time_s']):.1f} s{status}"[:TERMINAL_WIDTH]
 
 
 def _varied(row):
@@ -117,32 +121,33 @@ def markdown_table(rows, varied, norms):
     return "\n".join(lines + ["| " + " | ".join(cells) + " |" for cells in body]) + "\n"
 
 
-TEX_ESCAPE = {"_": r"\_", "%": r"\%", "&": r"\&", "#": r"\#", "$": r"\$"}
-
-
-def _tex(text):
-    return "".join(TEX_ESCAPE.get(c, c) for c in str(text))
+KEYS_TEX = {"alpha": r"$\alpha$", "epsilon.theta": r"$\theta$", "epsilon.p": "$p$", "dimension": "$d$",
+            "element.degree": "degree"}  # a varied config key as the caption's formula names it
 
 
 def latex_table(rows, varied, norms):
-    """map.tex: the varied keys, per norm fitted rate, proven rate and verdict (abbreviated, with the key
-    in the caption); \\small with tight column gaps and \\resizebox as the last resort, so it fits \\textwidth."""
-    head = [_tex(k) for k in varied] + [x for n in norms for x in (f"{_tex(n)} fit", "proven", "")]
-    lines = [r"\begin{table}", r"\centering", r"\small", r"\setlength{\tabcolsep}{3pt}",
-             r"\resizebox{\ifdim\width>\textwidth\textwidth\else\width\fi}{!}{%",
-             r"\begin{tabular}{" + "r" * len(varied) + "rrl" * len(norms) + "}", r"\hline",
-             " & ".join(head) + r" \\", r"\hline"]
-    for row in rows:
-        cells = [_tex(_cell(row.get(k))) for k in varied]
-        for n in norms:
-            cells += [_rate(row.get(f"rate_{n}")), _rate(row.get(f"proven_{n}")),
-                      VERDICT_SHORT.get(row.get(f"verdict_{n}"), _tex(_cell(row.get(f"verdict_{n}"))))]
-        lines.append(" & ".join(cells) + r" \\")
-    key = ", ".join(f"{s}: {v}" for v, s in VERDICT_SHORT.items() if v in ("agrees", "exceeds", "below",
-                                                                           "inconclusive", "not covered"))
-    lines += [r"\hline", r"\end{tabular}}", r"\caption{Rate map: rates fitted over the finest levels against the "
-              r"paper's proven rates; verdict " + _tex(key) + ".}", r"\end{table}"]
-    return "\n".join(lines) + "\n"
+    """map.tex: one booktabs float with a \\label, the varied keys as their symbols, per norm (written out)
+    the fitted rate, the proven rate and the verdict (abbreviated, the key in the caption); split by norms
+    where it does not fit \\textwidth."""
+    lead = [(KEYS_TEX.get(k, latex.escape(k)), [latex.escape(_cell(row.get(k))) for row in rows]) for k in varied]
+    cells = []
+    for n in norms:
+        cells += [("fit", [_latex_rate(row.get(f"rate_{n}")) for row in rows]),
+                  ("proven", [_latex_rate(row.get(f"proven_{n}")) for row in rows]),
+                  ("", [VERDICT_SHORT.get(row.get(f"verdict_{n}"), latex.escape(_cell(row.get(f"verdict_{n}"))))
+                        for row in rows])]
+    key = "; ".join(f"{s}: {v}" for v, s in VERDICT_SHORT.items() if v in ("agrees", "exceeds", "below",
+                                                                            "inconclusive", "not covered"))
+    caption = ("Rate map: for each " + ", ".join(head for head, _ in lead) + ", the slope of $\\log e$ against "
+               "$\\log h$ fitted over the finest levels, the rate the paper proves, and the verdict (" +
+               latex.escape(key) + ").")
+    return "% rate map written by signorini; needs \\usepackage{booktabs}\n" + latex.table(
+        lead + cells, [(names.name(n).tex, 3) for n in norms], caption, latex.label("map"), len(rows),
+        align="r" * len(lead) + "rrl" * len(norms))
+
+
+def _latex_rate(value):
+    return "--" if value is None or value == "" else latex.rate(float(value))
 
 
 # --- figures ------------------------------------------------------------------------------------
@@ -170,19 +175,30 @@ def _fixed(rows, keys):
     return list(dict.fromkeys(tuple(_cell(row.get(k)) for k in keys) for row in rows))
 
 
-def figures(folder, rows, varied, norms):
-    """heat_<norm>_<a>_<b> per norm with a proven rate somewhere and pair of varied keys (one panel per
-    value of the other keys), rate_<norm>_<key> per norm and key: PNG and PDF; the paths."""
+def figures(folder, rows, varied, norms, judged=None):
+    """heat_<norm>_<a>_<b> per norm of `judged` (default: `norms`; those with a verdict) and pair of varied
+    keys (one panel per value of the other keys), rate_<norm>_<key> per norm and key: PNG and PDF; the paths."""
     written = []
     with plots.styled():
-        for norm in norms:
+        for norm in norms if judged is None else judged:
             for a, b in itertools.combinations(varied, 2):
                 fig = heat_map(rows, norm, a, b, [k for k in varied if k not in (a, b)])
                 written += plots.save(fig, folder, f"heat_{norm}_{_name(a)}_{_name(b)}")
+        for norm in norms:
             for key in varied:
                 fig = rate_lines(rows, norm, key, [k for k in varied if k != key])
                 written += plots.save(fig, folder, f"rate_{norm}_{_name(key)}")
     return written
+
+
+def _key(key):
+    """A varied key on an axis: its symbol (θ, α) as mathtext, else its name."""
+    return KEYS_TEX.get(key, key)
+
+
+def _values(pairs):
+    """Fixed keys in a title or legend: θ = 0.1, α = 2."""
+    return ", ".join(f"{_key(k)[:-1]} = {v}$" if _key(k).endswith("$") else f"{k} = {v}" for k, v in pairs)
 
 
 def _name(key):
@@ -199,7 +215,7 @@ def heat_map(rows, norm, a, b, others):
     per_row = max(1, min(len(combos), 2))
     n_rows = math.ceil(len(combos) / per_row)
     left, right, top, gap, below = 0.7, 0.85, 0.3, 0.75, 0.75  # inches: tick labels, colour bar, titles, legend
-    width = plots.WIDTH_PT / 72
+    width = plots.WIDTH_PT / plots.PT_PER_INCH
     panel_w = (width - left - right - (per_row - 1) * 0.5) / per_row
     panel_h = max(0.9, 0.22 * len(ys) + 0.2)
     height = top + n_rows * panel_h + (n_rows - 1) * gap + below
@@ -210,10 +226,11 @@ def heat_map(rows, norm, a, b, others):
         ax = fig.add_axes([(left + c * (panel_w + 0.5)) / width,
                            1 - (top + r * (panel_h + gap) + panel_h) / height, panel_w / width, panel_h / height])
         image = _heat_panel(ax, rows, norm, (a, xs), (b, ys), dict(zip(others, combo)), colour)
-        ax.set_title(", ".join(f"{k}={v}" for k, v in zip(others, combo)) or norm, fontsize=plots.FONT_PT)
+        ax.set_title(", ".join(filter(None, [plots.math_label(norm), _values(zip(others, combo))])),
+                     fontsize=plots.FONT_PT)
     bar_axes = fig.add_axes([(width - right + 0.15) / width, below / height, 0.1 / width,
                              (height - top - below) / height])
-    fig.colorbar(image, cax=bar_axes, extend="both").set_label(f"{norm}: fitted - proven rate")
+    fig.colorbar(image, cax=bar_axes, extend="both").set_label("fitted $-$ proven rate")  # the title names the norm
     _verdict_legend(fig)
     return fig
 
@@ -240,8 +257,8 @@ def _heat_panel(ax, rows, norm, x, y, fixed, colour):
     image = ax.imshow(np.ma.masked_invalid(grid), cmap="RdBu", norm=colour, origin="lower", aspect="auto")
     ax.set_xticks(range(len(xs)), xs)
     ax.set_yticks(range(len(ys)), ys)
-    ax.set_xlabel(a)
-    ax.set_ylabel(b)
+    ax.set_xlabel(_key(a))
+    ax.set_ylabel(_key(b))
     ax.grid(False)
     ax.set_xlim(-0.5, len(xs) - 0.5)
     ax.set_ylim(-0.5, len(ys) - 0.5)
@@ -269,7 +286,7 @@ def rate_lines(rows, norm, key, others):
     from matplotlib.figure import Figure
     xs, numeric, logarithmic = _axis_values(rows, key)
     combos = _fixed(rows, others)[:MAX_LINES]
-    fig = Figure(figsize=(plots.WIDTH_PT / 72, 2.6))
+    fig = Figure(figsize=(plots.WIDTH_PT / plots.PT_PER_INCH, 2.6))
     ax = fig.add_subplot()
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.16, top=0.91)
     for i, combo in enumerate(combos):
@@ -278,7 +295,7 @@ def rate_lines(rows, norm, key, others):
         at = [x for x in xs if x in chosen]
         where = [float(x) if numeric else xs.index(x) for x in at]
         colour, marker = plots.COLOURS[i % len(plots.COLOURS)], plots.MARKERS[i % len(plots.MARKERS)]
-        label = ", ".join(f"{k}={v}" for k, v in fixed.items()) or norm
+        label = _values(fixed.items()) or plots.math_label(norm)
         ax.plot(where, [_number(chosen[x].get(f"rate_{norm}")) or math.nan for x in at], marker=marker,
                 color=colour, label=label)
         logs = [_number(chosen[x].get(f"rate_{norm}_log")) or math.nan for x in at]
@@ -290,9 +307,9 @@ def rate_lines(rows, norm, key, others):
         ax.set_xscale("log")
     if not numeric:
         ax.set_xticks(range(len(xs)), xs)
-    ax.set_xlabel(key)
+    ax.set_xlabel(_key(key))
     logs = any(_number(r.get(f"rate_{norm}_log")) is not None for r in rows)
-    ax.set_ylabel(f"fitted rate, {norm}" + (" (dashed: fit of e/|ln h|)" if logs else ""))
+    ax.set_ylabel(f"fitted rate, {plots.math_label(norm)}" + (r" (dashed: fit of $e/|\ln h|$)" if logs else ""))
     ax.set_title("dotted: the proven rate" + ("; solid: plain slope" if logs else ""), fontsize=plots.FONT_PT)
     if len(combos) > 1 or others:
         ax.legend(loc="best", fontsize=plots.FONT_PT - 1)

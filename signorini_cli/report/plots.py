@@ -1,7 +1,9 @@
 """Figures of a study (PNG and PDF): error vs h with slope triangles, work–precision, Newton iterations,
 and the same curves for several studies. Page-sized with a fixed layout chosen from the number of norms
 and the width (no tight_layout), log ticks as 10^k. matplotlib is imported here only (Agg)."""
+import logging
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,17 +18,23 @@ COLOURS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#0
 MARKERS = ("o", "s", "^", "D", "v", "P", "X")
 LINESTYLES = ("-", "--", "-.", ":", (0, (5, 1)), (0, (3, 1, 1, 1)), (0, (1, 1)))
 FONT_PT = 8  # every text of a figure, at its own size (≥ 8 pt once placed at 100 %)
+PT_PER_INCH = 72.27  # TeX points: a figure `width` pt wide fills \includegraphics[width=width pt] exactly
+# the fonts of a paper: Computer Modern (a default LaTeX article), STIX (Times-like journals), sans; a family
+# list falls back glyph by glyph (cmr10 has no Greek: the labels write it as mathtext)
+FONTS = {"cm": {"font.family": ["cmr10", "DejaVu Serif"], "mathtext.fontset": "cm", "axes.unicode_minus": False},
+         "stix": {"font.family": ["STIXGeneral", "DejaVu Serif"], "mathtext.fontset": "stix"},
+         "sans": {"font.family": ["DejaVu Sans"], "mathtext.fontset": "dejavusans"}}
 STYLE = {
-    "font.family": "serif", "font.serif": ["STIXGeneral", "DejaVu Serif"], "font.size": FONT_PT,
+    "font.size": FONT_PT, "axes.formatter.use_mathtext": True,
     "axes.titlesize": FONT_PT, "legend.fontsize": FONT_PT, "xtick.labelsize": FONT_PT,
     "ytick.labelsize": FONT_PT, "axes.labelsize": FONT_PT, "legend.framealpha": 0.9,
     "axes.grid": True, "grid.alpha": 0.35, "grid.linewidth": 0.5, "lines.linewidth": 1.2,
     "lines.markersize": 4, "legend.handlelength": 2.6, "savefig.dpi": 200, "pdf.fonttype": 42,
-    "mathtext.fontset": "stix",  # the tick labels' 10^k in the text's serif
 }
 FORMATS = ("png", "pdf")
+SPACE = {"L2": "$L^2$", "H1": "$H^1$"}  # the model error's norms
 WIDTH_PT = 345.0  # \textwidth of a default LaTeX article: placed at 100 %, the text stays 8 pt
-WIDTH, HEIGHT = WIDTH_PT / 72, 2.6  # inches, for callers that draw their own figure (limit_docs)
+WIDTH, HEIGHT = WIDTH_PT / PT_PER_INCH, 2.6  # inches, for callers that draw their own figure (limit_docs)
 SHARED_PANEL = 2  # norms drawn in one panel; more norms get more panels
 MIN_PANEL_PT = 160.0  # panels per row: as many as fit this wide
 MAX_ASPECT = 1.2  # a figure at most this many times as tall as wide: a journal column's figure fits its page
@@ -42,14 +50,14 @@ class Layout:
 
 
 def write_all(rows, folder, proven=None, title="", fit_levels=rates.FIT_LEVELS, width=None, per_norm=False, shown=None,
-              suffix=""):
+              suffix="", font="cm"):
     """convergence, work_precision and newton (and convergence_<norm> with per_norm), each as PNG and PDF
     in `folder`, `suffix` added to their names; the paths written. `shown`: the plotted norms (default:
-    all)."""
+    all); `font`: a key of FONTS."""
     layout = Layout(width or WIDTH_PT, per_norm)
     curves = error_curves(rows)
     shown = [n for n in (shown or curves) if n in curves]
-    with styled():
+    with styled(font):
         figures = {"convergence": convergence(rows, proven, title, fit_levels, layout.width, shown),
                    "work_precision": work_precision(rows, title, layout.width, shown),
                    "newton": newton({"": rows}, title, layout.width)}
@@ -60,21 +68,49 @@ def write_all(rows, folder, proven=None, title="", fit_levels=rates.FIT_LEVELS, 
                 for path in save(fig, folder, name + suffix)]
 
 
-def write_comparison(studies, folder, width=None):
+def write_comparison(studies, folder, width=None, font="cm"):
     """Several studies ({label: rows}): convergence and work–precision as a grid of one panel per norm,
     and Newton iterations; the paths written."""
     width = width or WIDTH_PT
-    with styled():
+    with styled(font):
         figures = {"compare_convergence": compare_convergence(studies, width),
                    "compare_work_precision": compare_work_precision(studies, width),
                    "compare_newton": newton(studies, "", width)}
         return [path for name, fig in figures.items() if fig is not None for path in save(fig, folder, name)]
 
 
-def styled():
-    """The STYLE as a context: figures are made and saved inside it, the caller's rcParams untouched."""
+def styled(font="cm"):
+    """The STYLE in `font` (FONTS) as a context: figures are made and saved inside it, the caller's rcParams
+    untouched."""
     import matplotlib
-    return matplotlib.rc_context(STYLE)
+    logging.getLogger("fontTools").setLevel(logging.ERROR)  # cmr10's 1970 header dates, harmless, once a PDF
+    return matplotlib.rc_context({**STYLE, **FONTS[font]})
+
+
+def math_label(column):
+    """A column as a figure shows it: a known norm or quantity in mathtext, any other name as it is."""
+    tex = names.name(column).tex
+    return tex if tex.startswith("$") else names.name(column).text
+
+
+MATH = {"α": r"$\alpha$", "ε": r"$\varepsilon$", "θ": r"$\theta$", "Γ_C": r"$\Gamma_C$", "≥": r"$\geq$",
+        "²": r"$^2$", "¹": r"$^1$", "·": r"$\cdot$", "π": r"$\pi$", "|ln h|": r"$|\ln h|$"}
+
+
+def legend_of(name):
+    """A sub-study's name as the values it varies: alpha1.5-p2 -> α = 1.5, p = 2; signorini -> the VI."""
+    varied = re.fullmatch(r"alpha([-+.\de]+)-p([-+.\de]+)", name)
+    if varied:
+        return rf"$\alpha = {varied[1]}$, $p = {varied[2]}$"
+    return "Signorini VI" if name == "signorini" else name
+
+
+def mathtext(text):
+    """Plain Unicode of a title or label with its Greek and Γ_C as mathtext (Computer Modern has no Greek
+    text glyphs)."""
+    for plain, math in MATH.items():
+        text = text.replace(plain, math)
+    return text.replace("$$", "")
 
 
 def save(fig, folder, name):
@@ -111,12 +147,12 @@ def convergence(rows, proven=None, title="", fit_levels=rates.FIT_LEVELS, width=
             marked = norm in (by_finest[0], by_finest[-1])
             if norm in proven and not marked:
                 fit += f", proven {_rate_text(proven[norm])}"
-            line, = ax.loglog(h, e, label=f"{names.name(norm).text}  ({fit})", **curve_style(shown.index(norm)))
+            line, = ax.loglog(h, e, label=f"{math_label(norm)}  ({fit})", **curve_style(shown.index(norm)))
             rate = proven.get(norm, slope)
             if marked and rate is not None and len(h) >= 2:
                 slope_triangle(ax, h, e, rate, above=norm == by_finest[-1] and len(group) > 1,
                                colour=line.get_color(), proven=norm in proven)
-        ax.set_xlabel("h")
+        ax.set_xlabel("$h$")
         ax.set_ylabel("error")
         _legend_below(ax)
     _finish(fig, axes)
@@ -149,7 +185,7 @@ def work_precision(rows, title="", width=WIDTH_PT, shown=None):
     fig, (ax,) = panels(1, width, -(-len(shown) // ncol), title)
     for i, norm in enumerate(shown):
         k = [j for j, row in enumerate(rows) if row["converged"] and row.get(norm)]
-        ax.loglog(total[k], curves[norm][1], label=names.name(norm).text, **curve_style(i))
+        ax.loglog(total[k], curves[norm][1], label=math_label(norm), **curve_style(i))
     ax.set_xlabel(_work_label(compile_known))
     ax.set_ylabel("error")
     _legend_below(ax, ncol=ncol)
@@ -185,7 +221,7 @@ def newton(studies, title="", width=WIDTH_PT):
 
 def compare_convergence(studies, width=WIDTH_PT):
     """A grid of one panel per norm, every study's error against h in it (the fitted slopes: compare's table)."""
-    return _compare(studies, lambda rows, norm: error_curves(rows).get(norm), "h", width)
+    return _compare(studies, lambda rows, norm: error_curves(rows).get(norm), "$h$", width)
 
 
 def compare_work_precision(studies, width=WIDTH_PT):
@@ -223,8 +259,8 @@ def _compare(studies, curve, xlabel, width):
         for i, (label, rows) in enumerate(studies.items()):
             xy = curve(rows, norm)
             if xy is not None and len(xy[0]):
-                ax.loglog(*xy, label=label, **curve_style(i))
-        ax.set_ylabel(names.name(norm).text)
+                ax.loglog(*xy, label=legend_of(label), **curve_style(i))
+        ax.set_ylabel(math_label(norm))
         ax.set_xlabel(xlabel)
     entries = {label: handle for ax in axes for handle, label in zip(*ax.get_legend_handles_labels())}
     for ax in axes[len(all_norms):]:  # the free place holds the legend
@@ -281,9 +317,11 @@ def _rate_text(rate):
 
 
 def curve_style(i):
-    """Colour, marker and line style of the i-th curve: distinguishable in grey print too."""
-    return {"color": COLOURS[i % len(COLOURS)], "marker": MARKERS[i % len(MARKERS)],
-            "linestyle": LINESTYLES[i % len(LINESTYLES)]}
+    """Colour, marker and line style of the i-th curve: distinguishable in grey print too, and no two of the
+    first 7 × 7 alike (past 7 curves the marker and the dash shift against the colour)."""
+    n = len(COLOURS)
+    return {"color": COLOURS[i % n], "marker": MARKERS[(i + i // n) % n],
+            "linestyle": LINESTYLES[(i + 2 * (i // n)) % n]}
 
 
 def panels(count, width, legend_lines, title, shared_legend=0):
@@ -295,14 +333,14 @@ def panels(count, width, legend_lines, title, shared_legend=0):
     ax_w, ax_h, row_h = _panel_size(width, ncols, legend_lines)
     foot = LEGEND_LINE * -(-shared_legend // 3) + 6.0 if shared_legend else 0.0
     height = figure_height(count, width, legend_lines, title) + foot
-    fig = Figure(figsize=(width / 72, height / 72))
+    fig = Figure(figsize=(width / PT_PER_INCH, height / PT_PER_INCH))
     axes = []
     for k in range(count):
         r, c = divmod(k, ncols)
         bottom = height - (TITLE if title else 0.0) - r * row_h - TOP - ax_h
         axes.append(fig.add_axes([(c * width / ncols + LEFT) / width, bottom / height, ax_w / width, ax_h / height]))
     if title:
-        fig.text(0.5, 1 - 3.0 / height, title, ha="center", va="top", fontsize=FONT_PT)
+        fig.text(0.5, 1 - 3.0 / height, mathtext(title), ha="center", va="top", fontsize=FONT_PT)
     return fig, axes
 
 
@@ -321,7 +359,7 @@ def figure_height(count, width, legend_lines, title=""):
 
 def _legend_below(ax, ncol=1):
     """The legend under the axes and its x label, never on the data."""
-    below = BELOW / (ax.get_position().height * ax.figure.get_figheight() * 72)
+    below = BELOW / (ax.get_position().height * ax.figure.get_figheight() * PT_PER_INCH)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -below), ncol=ncol, frameon=False,
               borderaxespad=0.0, handletextpad=0.5, columnspacing=1.2)
 
@@ -375,7 +413,7 @@ def _keep_inside(fig, axes, pad=3.0, rounds=4):
         return
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     renderer = FigureCanvasAgg(fig).get_renderer()
-    scale = fig.dpi / 72
+    scale = fig.dpi / PT_PER_INCH
     for _ in range(rounds):
         moved = False
         for ax in axes:
@@ -403,9 +441,9 @@ def _widen(limits, low_px, high_px, size_px, set_limits):
 
 # --- the ε → 0 studies ---------------------------------------------------------------------------
 
-def model_error(rows, path, width=WIDTH_PT):
+def model_error(rows, path, width=WIDTH_PT, font="cm"):
     """The model-error figure of `rows` (one mesh of an ε-sweep) as `path` (its suffix picks the format)."""
-    with styled():
+    with styled(font):
         model_error_figure(rows, width).savefig(path)
     return path
 
@@ -421,12 +459,12 @@ def model_error_figure(rows, width=WIDTH_PT):
             curve = [r for r in rows if r["alpha"] == alpha and r[norm] is not None]
             eps, err = [r["epsilon"] for r in curve], [r[norm] for r in curve]
             style = curve_style(k)
-            ax.loglog(eps, err, color=style["color"], marker=style["marker"], label=f"α = {alpha:g}")
+            ax.loglog(eps, err, color=style["color"], marker=style["marker"], label=rf"$\alpha = {alpha:g}$")
             tail = eps[len(eps) // 2:]  # through the last point
             ax.loglog(tail, [err[-1] * (e / eps[-1]) ** (1 / alpha) for e in tail], ls=":", lw=2,
                       color=style["color"], label=f"slope 1/{alpha:g}")
-        ax.set_xlabel("ε")
-        ax.set_ylabel(f"{names.name(norm).text} model error")
+        ax.set_xlabel(r"$\varepsilon$")
+        ax.set_ylabel(f"{SPACE[norm]} model error")
         _legend_below(ax, ncol=2)
     _finish(fig, axes)
     return fig

@@ -1,6 +1,7 @@
 """Human-readable output: the terminal table, Markdown/LaTeX tables and the figures of a study of any type
 (what its type says it reports)."""
 import math
+import re
 import textwrap
 from pathlib import Path
 
@@ -10,7 +11,7 @@ from ..analysis import rates
 from ..analysis.rates import error_columns as norms  # the measured norms of a table, for report, plots, progress
 from ..config import ConfigError, names
 from ..record import csvfile
-from . import latex, verdicts
+from . import captions, latex, pressure, verdicts
 from . import plots as plotting  # its matplotlib import waits inside its functions
 
 TERMINAL_WIDTH = 120  # columns of a terminal table; wider ones wrap into blocks
@@ -19,6 +20,12 @@ ALWAYS = ("L2", "H1", "L2_ref", "H1_ref")  # in the paper columns whether the pa
 FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 # gmsh/file meshes: their size spread and Γ_C, as in the CSV
 FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})
+CONSTANT = ("N", "levels", "converged", "newton_its", "points")  # one value on every row: said in the caption
+PARAMETERS = ("alpha", "p")  # a study's parameters: 1, 1.5, not 1.000e+00
+NAMING = ("study", "solver")  # a sub-study's name and kind: α and p say both (a table of an α × p sweep)
+SPACES = {"L2": "$L^2$", "H1": "$H^1$", "L2_gc": r"$L^2(\Gamma_C)$", "L2_gamma_c": r"$L^2(\Gamma_C)$",
+          "pos_gc": r"$L^{\alpha+1}(\Gamma_C)$", "eps_max": r"$\varepsilon_{\max}$",
+          "eps_min": r"$\varepsilon_{\min}$"}
 RATE_DEFINITION = r"rate: $\log(e_k/e_{k-1})/\log(h_k/h_{k-1})$ between successive levels"
 
 
@@ -36,6 +43,7 @@ def choose(rows, columns="paper", proven=None):
         lead = [c for c in PAPER_LEADING if c in rows[0] and not (c == "h" and h_per_N(rows))]
         if "epsilon" in lead and all(row["epsilon"] == 0 for row in rows):  # the Signorini problem: no ε,
             lead = [c for c in lead if c != "epsilon"] + [c for c in ("contact_measure",) if c in rows[0]]
+        lead += [c for c in names.HERTZ if c in rows[0] and "half_width" in rows[0]]  # a Hertz scene's own figures
         return lead, paper_norms(measured, proven or {})  # its contact set's measure instead
     unknown = [c for c in columns if c not in rows[0]]
     if unknown:
@@ -79,18 +87,24 @@ def format_table(rows, cfg=None, columns=None):
         lead = lead + ["time_s"]
     def label(column):  # short names for the paper's columns, the CSV's names for the others
         return names.name(column).text if chosen == "paper" else column
-    groups = [("", [(label(c), [_format(c, r.get(c)) for r in rows]) for c in lead])]
+    order = list(rows[0])
+    first = min((order.index(n) for n in shown if n in order), default=len(order))
+    before = [c for c in lead if c not in order or order.index(c) < first]  # the level's identity, then the
+    after = [c for c in lead if c not in before]  # errors, then timings and solver details (`all`)
+    def columns_of(chosen_columns):
+        return [(label(c), [_format(c, r.get(c)) for r in rows]) for c in chosen_columns]
+    groups = [("", columns_of(before))]
     groups += [(label(n), [("error", [_format(n, r.get(n)) for r in rows]),
                                      ("rate", [_format("rate_", r.get(f"rate_{n}")) for r in rows])])
                for n in shown]
-    return "\n".join(_aligned(groups) + _failures(rows, end=""))
+    return "\n".join(_aligned(groups + [("", columns_of(after))]) + _failures(rows, end=""))
 
 
 def _aligned(groups, width=TERMINAL_WIDTH):
     """Lines of a right-aligned table whose column groups [(title, [(header, cells)])] get their title
     centred above them; wider than `width`, it is wrapped into blocks that repeat the first column."""
-    units = [(title, [column]) for title, columns in groups if not title for column in columns]
-    units += [group for group in groups if group[0]]
+    units = [unit for title, columns in groups
+             for unit in ([group for group in [(title, columns)]] if title else [("", [c]) for c in columns])]
     key = units[0]
     blocks = [[]]
     for unit in units:
@@ -201,20 +215,29 @@ def _paper_number(value, missing="–"):
 
 
 def _comparison_tex(table, all_norms, fitted):
+    """compare.tex: norms down, studies across (each its finest error and fitted slope), so that norms ×
+    studies fit one table; levels, finest h and time in the first rows; split by studies past \\textwidth."""
     number = lambda v: "--" if v is None else latex.number(v, 3)  # noqa: E731
-    cells = [("study", [_latex_text(row["study"]) for row in table]),
-             ("levels", [str(row["levels"]) for row in table]),
-             ("finest $h$", [number(row["finest_h"]) for row in table]),
-             ("time [s]", [f"{row['time_s']:.2f}" for row in table])]
-    for norm in all_norms:
-        cells += [("finest", [number(row[f"{norm}_finest"]) for row in table]),
-                  ("fit", [_rate(row[f"{norm}_fit"], "--", latex.rate) for row in table])]
-    caption = ("Comparison of the studies " + ", ".join(_latex_text(row["study"]) for row in table)
-               + f": per norm the error on the finest converged level and the slope of $\\log e$ against "
-               f"$\\log h$ fitted over {fitted}; time: wall time of all levels. "
-               + "; ".join(d for d in map(_definition, all_norms) if d) + ".")
-    text = latex.table(cells, [(_header(n), 2) for n in all_norms], caption, latex.label("compare"), len(table))
+    lead = [("", ["levels", "finest $h$", "time [s]"] + [_header(n) for n in all_norms])]
+    cells = []
+    for row in table:
+        cells += [("finest", [str(row["levels"]), number(row["finest_h"]), f"{row['time_s']:.2f}"]
+                   + [number(row[f"{n}_finest"]) for n in all_norms]),
+                  ("fit", ["", "", ""] + [_rate(row[f"{n}_fit"], "--", latex.rate) for n in all_norms])]
+    caption = ("Comparison of " + ", ".join(label_tex(row["study"]) for row in table) + ": per norm the error on "
+               "the finest converged level and the slope of $\\log e$ against $\\log h$ fitted over "
+               f"{fitted}; time: wall time of all levels" + "".join(
+                   f"; {d}" for d in map(_definition, all_norms) if d) + ".")
+    text = latex.table(lead + cells, [(label_tex(row["study"]), 2) for row in table], caption,
+                       latex.label("compare"), 3 + len(all_norms), align="l" + "r" * len(cells))
     return "% comparison table written by signorini compare; needs \\usepackage{booktabs}\n" + text
+
+
+def label_tex(label):
+    """A study's label in LaTeX: its text escaped, "α=1.5" or "p = 2" parts as mathematics."""
+    text = _latex_text(label)
+    return re.sub(r"\$\\(\w+)\$\s*=\s*([-+\d.eE]+)|\b([A-Za-z])\s*=\s*([-+\d.eE]+)",
+                  lambda m: f"$\\{m[1]} = {m[2]}$" if m[1] else f"${m[3]} = {m[4]}$", text)
 
 
 # --- tables for papers and notebooks (deal.II ConvergenceTable style: error, then its rate) ----
@@ -227,7 +250,7 @@ def markdown_table(rows, digits=3, columns="paper", proven=None):
                                                    for k in ("error", "rate")]
     lines = ["| " + " | ".join(header) + " |", "|" + "---:|" * len(header)]
     for row in rows:
-        cells = [_paper_cell(c, row, digits, _scientific, "–", _markdown_text) for c in lead]
+        cells = [_markdown_cell(c, row, digits) for c in lead]
         for norm in shown:
             cells += [_paper_cell(norm, row, digits, _scientific, "–"), _rate(row.get(f"rate_{norm}"), "–")]
         lines.append("| " + " | ".join(cells) + " |")
@@ -235,18 +258,23 @@ def markdown_table(rows, digits=3, columns="paper", proven=None):
     return "\n".join(lines + ([""] + notes if notes else [])) + "\n"  # a blank line ends the table
 
 
-def latex_table(rows, digits=3, caption="", columns="paper", proven=None, key=None):
+def latex_table(rows, digits=3, caption="", columns="paper", proven=None, key=None, short=False):
     """The rate table as a booktabs `table` float (needs \\usepackage{booktabs}, said in its first line):
     "error | rate" under each norm's short name, numbers as $2.303\\times10^{-2}$, columns N or the
-    caption already gives left out, a layout that fits \\textwidth (latex.table), a \\label `key`."""
+    caption already gives left out, a layout that fits \\textwidth (latex.table), a \\label `key`; `short`:
+    norms headed by their space alone (a table whose errors are not u - u_h: the caption says what)."""
     lead, shown = choose(rows, columns, proven)
-    lead, given = redundant(rows, lead)
-    cells = [(_header(c), [_paper_cell(c, row, digits, latex.number, "--", _latex_text) for row in rows])
-             for c in lead]
+    lead, given = redundant(rows, [c for c in lead if c not in NAMING or "alpha" not in lead])
+    cells = [(_header(c, short), [_latex_cell(c, row, digits) for row in rows]) for c in lead]
     for norm in shown:
         cells += [("error", [_paper_cell(norm, row, digits, latex.number, "--") for row in rows]),
                   ("rate", [_rate(row.get(f"rate_{norm}"), "--", latex.rate) for row in rows])]
-    text = latex.table(cells, [(_header(n), 2) for n in shown], _caption(caption, lead, shown, rows, given),
+        if f"fit_{norm}" in lead:  # a fitted slope beside its error
+            cells.append(("fit", [_latex_cell(f"fit_{norm}", row, digits) for row in rows]))
+    groups = [(_header(n, short), 2 + (f"fit_{n}" in lead)) for n in shown]
+    lead_cells = [cell for cell, c in zip(cells, lead) if not (c.startswith("fit_") and c[4:] in shown)]
+    cells = lead_cells + cells[len(lead):]
+    text = latex.table(cells, groups, _caption(caption, lead, shown, rows, given),
                        key or latex.label("rates"), len(rows))
     return "% rate table written by signorini; needs \\usepackage{booktabs}\n" + text
 
@@ -257,13 +285,33 @@ def redundant(rows, lead):
     given, law = [], h_law(rows) if "N" in lead else None
     if law is not None:
         lead, given = [c for c in lead if c != "h"], [_h_statement(*law)]
+    fixed = [c for c in lead if c in CONSTANT and len(rows) > 1 and len({str(row.get(c)) for row in rows}) == 1]
+    lead, given = [c for c in lead if c not in fixed], given + [_fixed(c, rows[0][c]) for c in fixed]
     eps = [row.get("epsilon") for row in rows]
-    if "epsilon" in lead and eps and all(isinstance(e, (int, float)) for e in eps):
-        if all(math.isclose(e, row["h"], rel_tol=1e-9) for e, row in zip(eps, rows)):
-            lead, given = [c for c in lead if c != "epsilon"], given + [r"$\varepsilon = h$"]
-        elif max(eps) == min(eps):
-            lead, given = [c for c in lead if c != "epsilon"], given + [rf"$\varepsilon = {latex.constant(eps[0])}$"]
+    if "epsilon" in lead and eps and all(isinstance(e, (int, float)) and e > 0 for e in eps):
+        law = eps_law(eps, [row.get("h") for row in rows])
+        if law is not None:
+            lead, given = [c for c in lead if c != "epsilon"], given + [law]
     return lead, given
+
+
+def _fixed(column, value):
+    """A column one value on every row, said in the caption instead."""
+    if isinstance(value, bool):
+        return "every solve converged" if value else "no solve converged"
+    return f"{_header(column)} = " + (f"${value}$" if isinstance(value, int) else latex.escape(value))
+
+
+def eps_law(eps, h):
+    """ε = c h^q (q = 0, 1, 1/2, 2, 3) on every level as LaTeX, else None."""
+    for q, power in ((0, ""), (1, "h"), (0.5, r"\sqrt{h}"), (2, "h^{2}"), (3, "h^{3}")):
+        if q and not all(isinstance(x, (int, float)) and x > 0 for x in h):
+            continue
+        c = [e / (x ** q if q else 1.0) for e, x in zip(eps, h)]
+        if max(c) - min(c) <= 1e-9 * max(c):
+            factor = "" if power and math.isclose(c[0], 1.0, rel_tol=1e-9) else latex.constant(float(f"{c[0]:.6g}"))
+            return rf"$\varepsilon = {factor}{power}$"
+    return None
 
 
 def h_law(rows):
@@ -293,30 +341,59 @@ def _known(column):
     return column in names.NORMS or column in names.COLUMNS or (column.endswith("_ref") and column[:-4] in names.NORMS)
 
 
-def _header(column):
-    """A column's LaTeX header: the short name of a known column, else its own name escaped."""
-    return names.name(column).tex if _known(column) else r"\texttt{" + _latex_text(column) + "}"
+def _header(column, short=False):
+    """A column's LaTeX header: a norm written out (its space alone if `short`), a known column's symbol, a
+    fitted slope as "fit" and its norm, else its own name as words."""
+    if column.startswith("fit_"):
+        return "fit " + _header(column[4:], True)
+    if short and column in SPACES:
+        return SPACES[column]
+    return names.name(column).tex if _known(column) else _latex_text(column.replace("_", " "))
+
+
+def _markdown_cell(column, row, digits):
+    """A Markdown cell: α and p as %g, fitted slopes .2f, the rest as _paper_cell."""
+    value = row.get(column)
+    if isinstance(value, float) and (column in PARAMETERS or column.startswith("fit_")):
+        return f"{value:g}" if column in PARAMETERS else f"{value:.2f}"
+    return _paper_cell(column, row, digits, _scientific, "–", _markdown_text)
+
+
+def _latex_cell(column, row, digits):
+    """A LaTeX cell: α and p as the numbers they are, fitted slopes as rates, the rest as _paper_cell."""
+    value = row.get(column)
+    if column in PARAMETERS and isinstance(value, float):
+        return f"${latex.constant(value)}$"
+    if column.startswith("fit_") and isinstance(value, float):
+        return latex.rate(value)
+    return _paper_cell(column, row, digits, latex.number, "--", _latex_text)
 
 
 def _definition(column):
-    return f"{names.name(column).tex}: {names.name(column).definition}" if _known(column) else None
+    """What a header leaves to the caption: a short name's meaning (a norm written out in its header: None)."""
+    known = names.name(column)
+    if not _known(column) or not known.definition:
+        return None
+    norm = column in names.NORMS or column[:-4] in names.NORMS  # a norm's definition is a sentence
+    return known.definition if norm else f"{known.tex}: {known.definition}"
 
 
 def _caption(caption, lead, shown, rows, given=()):
     """The caption: the study (LaTeX, see caption_of), what the table leaves out, what each short name
     means, the rate, and the failed levels."""
     n_given = any(g.startswith("$N$:") for g in given)  # with the law of h
-    defined = [_definition(c) for c in lead + shown if _known(c) and not (c == "N" and n_given)]
-    given = [g for g in given if g not in caption]  # ε = h: said with the study already
+    defined = [d for c in lead + shown if not (c == "N" and n_given) for d in [_definition(c)] if d]
+    given = [g for g in given if not (g.startswith(r"$\varepsilon =") and r"$\varepsilon =" in caption)]
     text = (caption + ". " if caption else "") + "; ".join(
         list(given) + defined + ([RATE_DEFINITION] if shown else [])) + "."
     return " ".join([text] + [latex.escape(line) for line in _failures(rows)])
 
 
-def caption_of(name, cfg=None, variational=False):
+def caption_of(name, cfg=None, variational=False, slug=False):
     """The study in a caption, from its config's fields: d, α, ε as a formula (or the Signorini variational
-    inequality), the exact solution (or the data) typeset, Γ_C; LaTeX with every user-given text escaped."""
-    text = f"Study {latex.escape(name)}"
+    inequality), the exact solution (or the data) typeset, Γ_C; the study's name only when `slug` (or without
+    a config); LaTeX with every user-given text escaped."""
+    text = f"Study {latex.escape(name)}" if slug or cfg is None else "Errors and observed rates"
     if cfg is None:
         return text
     parts = [f"$d = {cfg.dimension}$"]
@@ -327,7 +404,7 @@ def caption_of(name, cfg=None, variational=False):
         theta = "" if cfg.epsilon.theta == 1 and law.p != 0 else latex.constant(cfg.epsilon.theta)  # 1 h: h
         law = law.tex.format(p=cfg.epsilon.p).strip()
         parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$"]
-    parts += [_problem(cfg.problem), r"$\Gamma_C$: \texttt{" + latex.escape(cfg.contact) + "}"]
+    parts += [_problem(cfg.problem), r"contact boundary $\Gamma_C$: " + latex.escape(cfg.contact)]
     if cfg.mesh.kind == "gmsh":
         parts.append(r"gmsh geometry \texttt{" + latex.escape(Path(cfg.mesh.geometry).stem) + "}")
     return f"{text}: " + ", ".join(parts)
@@ -399,7 +476,7 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
     """The tables (<name><suffix>.md, .tex) and (if `plots`) the figures a study of its type reports, into
     `folder`; the paths written. `columns` as output.columns for its rate tables (default: the config's,
     else "paper"); given, they also choose the plotted norms. `figure`: plots.Layout options; `summary`
-    (verdict.Summary): its verdicts under the first table."""
+    (verdict.Summary): its verdicts under the first Markdown table and as verdict<suffix>.tex."""
     folder = Path(folder or study.folder)
     shown, figures = studies.of(study.study_type).reported(cfg, study.tables or {"rates": study.rows})
     description = f"Study {study.name}" + (f": {cfg.description}" if cfg is not None and cfg.description else "")
@@ -410,21 +487,31 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
         path.parent.mkdir(parents=True, exist_ok=True)
         how = (chosen, proven) if table.paper else ("all", {})
         part = "" if table.paper and "/" not in table.name else f", table {table.name}"
-        under = ([], []) if summary is None or table is not shown[0] else (
-            verdicts.markdown_lines(summary), verdicts.latex_lines(summary))
+        under = [] if summary is None or table is not shown[0] else verdicts.markdown_lines(summary)
         comment = (description + part).replace("--", "- -")  # "-->" in a description would end the comment
         written.append(path.with_name(path.name + ".md"))
         written[-1].write_text("\n".join([f"<!-- {comment} -->\n" + markdown_table(table.rows, digits, *how)
-                                          .rstrip("\n")] + under[0]) + "\n")
-        caption = caption_of(study.name, cfg, _variational(table.rows)) + latex.escape(part)
+                                          .rstrip("\n")] + under) + "\n")
         key = latex.label(study.name, table.name if part else "", suffix)
         written.append(path.with_name(path.name + ".tex"))
-        written[-1].write_text("\n".join([latex_table(table.rows, digits, caption, *how, key=key).rstrip("\n")]
-                                         + under[1]) + "\n")
+        written[-1].write_text(latex_table(table.rows, digits, _table_caption(study, cfg, table), *how, key=key,
+                                           short=not table.paper))
+    if summary is not None and summary.norms:
+        written.append(folder / f"verdict{suffix}.tex")
+        written[-1].write_text(verdicts.latex_table(summary, latex.label(study.name, "verdict", suffix)))
     if plots:
         shown_norms = choose(study.rows, chosen, proven)[1] if chosen != "paper" and study.rows else None
         written += draw(figures, study, cfg, folder, proven, figure, shown_norms, suffix)
     return written
+
+
+def _table_caption(study, cfg, table):
+    """A rate table's caption from its (sub-)study's config; another table's from what its rows are."""
+    if not table.paper:
+        return captions.of_table(table.name.split("/")[-1], cfg)
+    parted = "/" in table.name and cfg is not None  # a sub-study's table (total_error): its own α and ε
+    sub = dict(studies.of(study.study_type).sub_studies(cfg)) if parted else {}
+    return caption_of(study.name, sub.get(table.name.split("/")[0], cfg), _variational(table.rows))
 
 
 def _variational(rows):
@@ -444,10 +531,13 @@ def draw(figures, study, cfg, folder, proven, figure=None, shown=None, suffix=""
                                           title=title(study, cfg), fit_levels=fit_levels, shown=shown,
                                           suffix=suffix, **figure)
         elif fig.kind == "model_error":
-            written += [plotting.model_error(fig.data, folder / f"{fig.name}{suffix}", figure.get("width") or
-                                             plotting.WIDTH_PT) for suffix in (".png", ".pdf")]
+            written += [plotting.model_error(fig.data, folder / f"{fig.name}{suffix}", figure.get("width")
+                                             or plotting.WIDTH_PT, figure.get("font", "cm"))
+                        for suffix in (".png", ".pdf")]
         elif fig.kind == "comparison":
-            written += plotting.write_comparison(fig.data, folder, figure.get("width"))
+            written += plotting.write_comparison(fig.data, folder, figure.get("width"), figure.get("font", "cm"))
+        elif fig.kind == "pressure":
+            written += pressure.write(fig.data, folder / Path(fig.name).parent, figure.get("width"))
     return written
 
 
@@ -460,9 +550,14 @@ def terminal(study, cfg=None):
 
 
 def wrote(names, folder=None):
-    """A command's closing line, 'wrote [into FOLDER:] a, b, ...', wrapped to TERMINAL_WIDTH between names."""
+    """A command's closing line, 'wrote [into FOLDER:] a, b, ...', wrapped to TERMINAL_WIDTH between names; the
+    files of a sub-folder (a total-error study's sub-studies) counted under the folder's name."""
+    names = [str(name) for name in names]
+    subs = list(dict.fromkeys(name.split("/")[0] for name in names if "/" in name))
+    counts = {sub: sum(name.startswith(sub + "/") for name in names) for sub in subs}
+    listed = [name for name in names if "/" not in name] + [f"{sub}/ ({counts[sub]} files)" for sub in subs]
     head = f"wrote into {folder}: " if folder is not None else "wrote "
-    return textwrap.fill(head + ", ".join(map(str, names)), TERMINAL_WIDTH, subsequent_indent="  ",
+    return textwrap.fill(head + ", ".join(listed), TERMINAL_WIDTH, subsequent_indent="  ",
                          break_long_words=False, break_on_hyphens=False)
 
 
@@ -475,9 +570,13 @@ def proven_rates(cfg):
     return {norm: rate for norm, rate in found.items() if rate is not None}
 
 
-def title(study, cfg=None):
-    """A one-line plot title: the study type's, or the study name alone."""
-    return studies.of(study.study_type).title(cfg, study.name) if cfg is not None else study.name
+def title(study, cfg=None, slug=False):
+    """A one-line plot title: the study type's without the study's name unless `slug` (no config: the name
+    only when `slug`)."""
+    if cfg is None:
+        return study.name if slug else ""
+    text = studies.of(study.study_type).title(cfg, study.name)
+    return text if slug else text.removeprefix(f"{study.name}: ")
 
 
 def format_rows(rows):

@@ -1,6 +1,9 @@
 """A study's verdict as the terminal, Markdown and LaTeX show it (the verdict itself: analysis.verdict)."""
 import textwrap
 
+from ..config import names
+from . import latex
+
 TERMINAL_WIDTH = 120  # the verdict block wraps its last column to fit a terminal of this width
 
 
@@ -10,8 +13,8 @@ def format_summary(summary):
     if summary.outside_theory:
         lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
     lines += textwrap.wrap(f"verification: rate = slope of log e against log h over the last {summary.fit_levels} "
-                           f"levels; interval: the fit ± 2 standard errors, the successive rates and where they head; every class needs "
-                           f"an interval within ± {summary.tolerance:g}", TERMINAL_WIDTH)
+                           f"levels; interval: the fit ± 2 standard errors, the successive rates and where they head; "
+                           f"every class needs an interval within ± {summary.tolerance:g}", TERMINAL_WIDTH)
     lines += [f"  {note}" for note in summary.notes]
     rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
     for v in summary.norms:
@@ -47,15 +50,19 @@ def markdown_lines(summary):
     return lines
 
 
-def latex_lines(summary):
-    """The verdicts under a LaTeX rate table: a tabular of norm, observed rate, interval, proven, verdict."""
-    lines = ["", r"\begin{tabular}{lrrrl}", r"\hline", r"norm & observed & interval & proven & verdict \\",
-             r"\hline"]
-    for v in summary.norms:
-        proven = "--" if v.proven is None else f"{v.proven:g}"
-        lines.append(rf"\texttt{{{v.norm.replace('_', chr(92) + '_')}}} & {_rate(v.observed)} & {interval(v)} & "
-                     rf"{proven} & {v.verdict} \\")
-    return lines + [r"\hline", r"\end{tabular}"]
+def latex_table(summary, key):
+    """verdict.tex: one booktabs float, per norm the observed rate with its interval, the proven rate, the
+    class and the paper's result that proves it."""
+    rows = [[names.name(v.norm).tex, "--" if v.observed is None else latex.rate(v.observed),
+             "--" if v.lo is None else f"$[{v.lo:.2f}, {v.hi:.2f}]$",
+             "--" if v.proven is None else f"${latex.constant(v.proven)}$", latex.escape(v.verdict),
+             latex.escape(v.reference) or "--"] for v in summary.norms]
+    cells = [(head, [row[k] for row in rows]) for k, head in enumerate(
+        ["norm", "observed", "interval", "proven", "verdict", "result"])]
+    caption = (f"Observed rates fitted over the last {summary.fit_levels} levels (slope of $\\log e$ against "
+               "$\\log h$) with their intervals, against the rates the paper proves.")
+    return "% verdict written by signorini; needs \\usepackage{booktabs}\n" + latex.table(
+        cells, [], caption, key, len(rows), align="lrrrll")
 
 
 def _quantity_row(q):

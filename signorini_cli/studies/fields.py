@@ -1,5 +1,6 @@
-"""Fields for ParaView and meshio (output.fields: true): u_h, its error and the Γ_C contact indicator, XDMF
-per level."""
+"""Fields for ParaView and meshio (output.fields: true), XDMF per level: u_h, its error and the Γ_C contact
+indicator; for elasticity u_h, its error, the cellwise stress, its von Mises value and the Γ_C contact pressure,
+with the exact fields beside them on manufactured scenes."""
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -8,9 +9,10 @@ from ..meshing.meshes import CONTACT
 from ..system import files
 
 
-def write(folder, index, domain, u_h, u_exact):
+def write(folder, index, domain, u_h, u_exact, elastic=None):
     """fields/level_NN.xdmf (+ .h5) in `folder`: the mesh with its boundary tags (1 = Γ_C, 2 = Γ_D),
-    u_h, error = u_h − u_ex at the nodes (manufactured scenes only) and contact = 1 where u_h > 0 on Γ_C."""
+    u_h, error = u_h − u_ex at the nodes (manufactured scenes only) and contact = 1 where u_h > 0 on Γ_C;
+    `elastic` (cfg, forms, ε): the elastic fields of elastic_fields instead of the contact indicator."""
     from dolfinx import io
     msh = u_h.function_space.mesh
     path = folder / "fields" / f"level_{index:02d}.xdmf"
@@ -23,7 +25,9 @@ def write(folder, index, domain, u_h, u_exact):
         xdmf.write_function(u_h)
         if u_exact is not None:
             xdmf.write_function(nodal_error(u_h, u_exact))
-        xdmf.write_function(contact_indicator(u_h, domain))
+        extra = elastic_fields(*elastic, u_h) if elastic is not None else [contact_indicator(u_h, domain)]
+        for function in extra:
+            xdmf.write_function(function)
     if msh.comm.rank == 0:
         one_grid(path)
     msh.comm.barrier()
@@ -73,3 +77,52 @@ def contact_indicator(u_h, domain):
     contact = fem.Function(V, name="contact")
     contact.x.array[dofs] = np.where(u_h.x.array[dofs] > 0, 1.0, 0.0)
     return contact
+
+
+def elastic_fields(cfg, forms, eps_value, u_h):
+    """sigma and von_mises of u_h (constant on each cell for P1: DG0, exact), pressure = (1/ε)[u_h·n − g0]_+^α
+    at the Γ_C nodes (0 elsewhere); with u_ex: u_exact (nodal), sigma_exact and von_mises_exact at the cells'
+    midpoints, pressure_exact = (1/ε)[u_ex·n − g0]_+^α at the Γ_C nodes."""
+    from ..problems import elasticity
+    term = forms.gap.term
+    found = [cellwise(elasticity.stress(cfg, u_h), "sigma", u_h), cellwise(elasticity.von_mises(cfg, u_h),
+                                                                          "von_mises", u_h),
+             on_contact_nodes(term, elasticity.pressure_values(cfg, term, eps_value), "pressure")]
+    if forms.u_exact is None:
+        return found
+    u_ex = nodal(forms.u_exact, u_h.function_space, "u_exact")
+    return found + [u_ex, cellwise(elasticity.stress(cfg, forms.u_exact), "sigma_exact", u_h),
+                    cellwise(elasticity.von_mises(cfg, forms.u_exact), "von_mises_exact", u_h),
+                    on_contact_nodes(term, elasticity.pressure_values(cfg, term, eps_value, u_exact=True),
+                                     "pressure_exact")]
+
+
+def cellwise(expression, name, u_h):
+    """The UFL `expression` at each cell's midpoint, as a DG0 function (scalar or tensor)."""
+    from dolfinx import fem
+    shape = expression.ufl_shape
+    element = ("DG", 0) if not shape else None
+    msh = u_h.function_space.mesh
+    space = fem.FunctionSpace(msh, element) if element else fem.TensorFunctionSpace(msh, ("DG", 0), shape=shape)
+    function = fem.Function(space, name=name)
+    function.interpolate(fem.Expression(expression, space.element.interpolation_points()))
+    return function
+
+
+def nodal(expression, V, name):
+    """The UFL `expression` interpolated in V (its values at the nodes)."""
+    from dolfinx import fem
+    function = fem.Function(V, name=name)
+    function.interpolate(fem.Expression(expression, V.element.interpolation_points()))
+    return function
+
+
+def on_contact_nodes(term, values, name):
+    """A scalar P1 function with `values` (facets, vertices) at the Γ_C facets' vertices (a vertex's
+    facets averaged: they differ where the normal jumps), 0 elsewhere."""
+    from ..problems import elasticity
+    total, count = elasticity.on_vertices(term, values)
+    total.name = name
+    touched = count.x.array > 0
+    total.x.array[touched] /= count.x.array[touched]
+    return total

@@ -27,6 +27,8 @@ class Level:
     extra: dict = field(default_factory=dict)
     solution: object = field(default=None, repr=False, compare=False)  # u_h, for nested iteration
     timings: dict = field(default_factory=dict, compare=False)  # t_* phases, memory (timing_columns)
+    profile: list = field(default_factory=list, repr=False, compare=False)  # the Γ_C pressure (problems.profile)
+    scene: object = field(default=None, repr=False, compare=False)  # (Domain, forms) while on_level sees the level
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """The refinement study: one solved and measured level per mesh of the family; its rate table, verdict
 and convergence figures."""
+import dataclasses
 import time
 
 import numpy as np
@@ -37,7 +38,7 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
             previous = strategies.Handoff(levels[-1].solution)
         if on_level is not None:  # it sees the level's u_h (Level.solution) before it is let go
             on_level(levels)
-        levels[-1].solution = None  # only the last converged level's u_h is kept (nested iteration)
+        levels[-1].solution, levels[-1].scene = None, None  # only the last converged u_h is kept (nested iteration)
         if not levels[-1].outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels
@@ -113,8 +114,9 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     eps_value = cfg.epsilon(domain.h)
     eps = fem.Constant(domain.mesh, eps_value)
     u_h = fem.Function(V, name="u_h")
+    # refused before its first solve; else the quadrature degrees its data need
+    domain = dataclasses.replace(domain, quadrature=registry.check_posed(cfg, domain, None, eps_value))
     forms = problem_module.forms(cfg, domain, u_h, eps)
-    registry.check_posed(cfg, domain, forms.u_exact, eps_value)  # refused before its first solve
     bcs = [problem_module.dirichlet_condition(V, domain, forms.u_exact)]
     problem = strategies.problem(forms, u_h, bcs, eps, eps_value, cfg.dimension)
     outcome = strategies.solve(cfg.solver, problem, previous, monitor, phases)
@@ -122,15 +124,18 @@ def solve_level(cfg, index, n, comm=MPI.COMM_WORLD, monitor=None, verifier=None,
     extra = dict(domain.columns, **problem_columns(cfg), **stability.report(cfg, problem, domain, outcome, dofs))
     with phases("errors"):
         # measured even when Newton failed (kept in study.h5 for diagnosis); the table blanks them
-        errors = problem_module.errors(u_h, forms.u_exact, domain.h) if forms.u_exact is not None else {}
-        level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h)
+        errors = problem_module.errors(u_h, forms.u_exact, domain.h, domain.quadrature[1]) \
+            if forms.u_exact is not None else {}
+        level = Level(index, domain.n, domain.h, dofs, eps_value, outcome, errors, 0.0, extra, u_h,
+                      scene=(domain, forms))
         if verifier is not None:  # Γ_C measures, reference errors
             verifier.measure(level, domain, u_h, forms)
     reference_s = level.extra.get("reference_time_s") or 0.0  # its own column, in neither time_s nor t_errors
     phases.deduct("errors", reference_s)
     if cfg.output.fields:
         with phases("output"):
-            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact)
+            elastic = (cfg, forms, eps_value) if forms.gap is not None else None
+            fields.write(cfg.output_dir, index, domain, u_h, forms.u_exact, elastic)
     measuring = reference_s + (outcome.floor_s or 0.0)  # the linear floor too: a measurement, not the study's work
     level.time_s = comm.allreduce(time.perf_counter() - start - measuring, op=MPI.MAX)
     level.timings = timing_columns(outcome, phases, comm, mesh_peak_mb)
@@ -154,9 +159,11 @@ def timing_columns(outcome, phases, comm, mesh_peak_mb):
 
 
 def tables(cfg, levels):
-    """The record's tables, the main one first: rates and work_precision."""
+    """The record's tables, the main one first: rates, work_precision and the Γ_C pressure of each level."""
     rows = rate_table(levels)
-    return {"rates": rows, "work_precision": work_precision_rows(rows)}
+    pressure = [row for lv in levels for row in lv.profile]
+    named = {"rates": rows, "pressure": pressure} if pressure else {"rates": rows}
+    return dict(named, work_precision=work_precision_rows(rows))
 
 
 def summary(cfg, levels):
@@ -175,8 +182,11 @@ def parts(cfg, levels):
 
 
 def reported(cfg, named):
-    """The rate table and its convergence figures."""
-    return [Table("rates", named["rates"], paper=True)], [Figure("convergence", "convergence", named["rates"])]
+    """The rate table and its convergence figures; the contact pressure along Γ_C, level by level."""
+    figures = [Figure("convergence", "convergence", named["rates"])]
+    if named.get("pressure"):
+        figures.append(Figure("pressure", "pressure", (named["pressure"], named["rates"])))
+    return [Table("rates", named["rates"], paper=True)], figures
 
 
 def compared(named):

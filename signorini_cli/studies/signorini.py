@@ -25,14 +25,14 @@ def run(cfg, on_level=None, comm=MPI.COMM_WORLD, monitor=None, done=()):
     levels, previous = [], None
     for index, n in enumerate(cfg.mesh.refinements):
         start = time.perf_counter()
-        level, u_h = signorini_level(cfg, index, meshes.build(cfg.mesh, cfg.contact, n, comm), start,
-                                     previous, monitor)
+        domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
+        level, u_h = signorini_level(cfg, index, domain, start, previous, monitor)
         levels.append(level)
         previous = u_h if level.outcome.converged else previous
         if on_level is not None:  # it sees the level's u_h (Level.solution), which the next level lets go
-            level.solution = u_h
+            level.solution, level.scene = u_h, (domain, None)  # no ε: no compliance pressure
             on_level(levels)
-            level.solution = None
+            level.solution, level.scene = None, None
         if not level.outcome.converged and cfg.solver.on_failure == "stop":
             break
     return levels

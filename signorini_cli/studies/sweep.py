@@ -74,7 +74,6 @@ def sweep_alpha(cfg, domain, u_S, alpha):
     forms = problem_module.forms(dataclasses.replace(cfg, alpha=alpha), domain, u_h, eps)
     bc = problem_module.dirichlet_condition(V, domain, forms.u_exact)
     problem = strategies.problem(forms, u_h, [bc], eps, cfg.limit.epsilon[0], cfg.dimension)
-    gamma_c_dofs = fem.locate_dofs_topological(V, domain.mesh.topology.dim - 1, domain.facets())
     ds_c = domain.ds_c(measure.product_degree(V))
     solved = cfg.limit.epsilon[0]
     with strategies.newton_for(cfg.solver, problem) as newton:
@@ -82,7 +81,7 @@ def sweep_alpha(cfg, domain, u_S, alpha):
             start = time.perf_counter()
             outcome = strategies.descend(newton, problem, value, cfg.solver, solved)
             solved = value if outcome.converged else solved
-            found = measure.model_differences(u_h, u_S, ds_c, gamma_c_dofs)
+            found = problem_of(cfg, limit=True).model_differences(cfg, domain, u_h, u_S, ds_c)
             elapsed = domain.mesh.comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
             yield Point(domain.n, domain.h, solver.global_dofs(V), alpha, value, outcome, found, elapsed)
 

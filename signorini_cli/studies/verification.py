@@ -1,17 +1,18 @@
 """Per-level verification measures beyond L2/H1: Γ_C errors and quantities, successive differences, and
 errors against a reference solution for data-only scenes; written as Level.extra columns with rates."""
+import numpy as np
 import ufl
 from mpi4py import MPI
 
 from ..config import names
 from ..meshing.meshes import CONTACT
-from ..problems import contact, measure
+from ..problems import contact, hertz, measure, profile
 from ..problems.registry import problem_of
 from . import reference
 
 CONTACT_ERRORS = tuple(c for m in names.MEASURES if m.kind == "error" and m.contact for c in m.columns)
 NEEDS_CONTACT = tuple(m.key for m in names.MEASURES if m.contact)
-QUANTITIES = tuple(m.key for m in names.MEASURES if m.kind == "quantity")  # no rates: values, not errors
+QUANTITIES = tuple(c for m in names.MEASURES if m.kind == "quantity" for c in m.columns)  # values, no rates
 REFERENCE_ERRORS = ("ref_err_L2", "ref_err_H1")  # ||u_ref(k-1) - u_ref(k)||: how exact each reference is
 
 
@@ -53,6 +54,8 @@ class Verifier:
         if "diff" in wanted and self.previous is not None and converged:
             errors.update(reference.successive_differences(self.previous, u_h))
         quantities = self._quantities(level, domain, u_h, forms, wanted)
+        if has_contact and converged:
+            level.profile = profile.rows(self.cfg, domain, u_h, forms, level.eps, level.index)
         level.errors.update(errors)
         self._columns(level, errors, quantities, wanted, has_contact)
         if "diff" in wanted and converged:  # kept for the successive differences only: a whole level's mesh
@@ -89,7 +92,8 @@ class Verifier:
 
     def _normal_quantities(self, level, domain, forms, wanted):
         """Γ_C quantities of an elastic u_h through w_h = u_h·n − g0, from its facet dof values: penetration,
-        the contact set and (1/eps)∫[w_h]_+^alpha, all exact for P1 and P2 (no potential energy)."""
+        the contact set and (1/eps)∫[w_h]_+^alpha, all exact for P1 and P2 (no potential energy), and with
+        problem.hertz_radius the half-width and peak pressure against Hertz's (problems/hertz.py, P1)."""
         comm, found, degree = domain.mesh.comm, {}, self.cfg.element.degree
         values, points = forms.gap.dof_values(), forms.gap.term.points
         if "penetration" in wanted:
@@ -99,6 +103,8 @@ class Verifier:
         if "contact_force" in wanted:
             force = contact.positive_power(comm, values, points, self.cfg.alpha, degree)
             found["contact_force"] = force / level.eps
+        if "hertz" in wanted:
+            found.update(hertz.quantities(self.cfg, forms.gap.term, level.eps))
         return found
 
     def _contact_variable(self, u_h, domain, forms, level):
@@ -112,7 +118,7 @@ class Verifier:
             vertices = points[:, :domain.mesh.topology.dim]
             return vertices, u_h.x.array[dofs], lambda facets, x: u_ex(x, level.eps), level.errors["H1"]
         msh = u_h.function_space.mesh
-        degree = measure.error_degree(u_h.function_space, level.h)
+        degree = domain.quadrature[1] if domain.quadrature else measure.error_degree(u_h.function_space, level.h)
         dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
         a_ee = measure.integrate(forms.gap.energy(forms.u_exact - u_h), dx)
         vertices = forms.gap.term.points[:, :msh.topology.dim]

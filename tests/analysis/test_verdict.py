@@ -317,3 +317,34 @@ def test_3d_alpha2_l2_on_n4_to_16_still_exceeds_8_5():
         e.append(e[-1] * (b / a) ** r)
     found, reason = verdict.decide(rates.fit(h, e, [True] * 4), 1.6, 0.2)
     assert found == verdict.EXCEEDS, reason
+
+
+@pytest.mark.parametrize("changes, errors", [
+    pytest.param({"alpha": 3.0, "expect": {"rates": {"L2": 2.0, "energy_err": 1.0}}},
+                 {"L2": [h**2 * -math.log(h) for h in H], "H1": [h for h in H]}, id="log-factor-expect"),
+    pytest.param({"problem": {"exact": None, "f": "10"}, "epsilon": {"law": "constant", "theta": 0.1}},
+                 {}, id="quantities"),
+])
+def test_summary_reads_back_from_its_csv(make_config, tmp_path, changes, errors):
+    # report shows the verdict run recorded: summary.csv read back gives the very Summary run had
+    cfg = make_config(**changes)
+    extra = {"contact_force": [2.0 - 0.3 * h**2 for h in H], "penetration": [0.1] * 4} if not errors else None
+    summary = verdict.summarize(cfg, levels(errors, extra))
+    text = csvfile.text(verdict.summary_rows(summary), verdict.SUMMARY_COLUMNS)
+    path = tmp_path / "summary.csv"
+    path.write_text(text)
+    assert verdict.from_rows(cfg, csvfile.read(path)) == summary
+
+
+def test_proven_rates_are_the_methods_records(make_config, monkeypatch):
+    # a contact method brings its own records (rates.RECORDS); one without any is not covered
+    import dataclasses
+    cfg = make_config()
+    other = dataclasses.replace(cfg, problem=dataclasses.replace(cfg.problem, method="other"))
+    lv = levels({"L2": [h**2 for h in H]})
+    (none,) = verdict.summarize(other, lv).norms
+    assert none.verdict == verdict.NOT_COVERED and "no proven rates recorded for problem.method other" in none.reason
+    record = rates.Proven((2,), "any alpha", "any eps", "L2", "3/2", False, "Thm. X", "a test record")
+    monkeypatch.setitem(rates.RECORDS, "other", (record,))
+    (own,) = verdict.summarize(other, lv).norms
+    assert own.proven == 1.5 and own.reference == "Thm. X" and own.verdict == verdict.EXCEEDS

@@ -75,11 +75,16 @@ def test_run_writes_when_asked(raw_config, tmp_path):
     assert [row["L2"] for row in written.rows] == [row["L2"] for row in study.rows]
 
 
-def check_page_example(tmp_path, monkeypatch, capsys):
-    """docs/api.md's example, run from the repository's folder, prints the page's lines (on rank 0)."""
+def page_examples():
+    """docs/api.md's examples: each python block with the text block that follows it."""
     text = (DOCS / "api.md").read_text()
-    (example,) = re.findall(r"```python\n(.*?)```", text, flags=re.S)
-    (expected,) = re.findall(r"```text\n(.*?)```", text, flags=re.S)
+    return list(zip(re.findall(r"```python\n(.*?)```", text, flags=re.S), re.findall(r"```text\n(.*?)```", text,
+                                                                                       flags=re.S)))
+
+
+def check_page_example(tmp_path, monkeypatch, capsys, k):
+    """docs/api.md's k-th example, run from the repository's folder, prints the page's lines (on rank 0)."""
+    example, expected = page_examples()[k]
     script = tmp_path / "example.py"
     script.write_text(example)
     monkeypatch.chdir(ROOT)
@@ -87,13 +92,34 @@ def check_page_example(tmp_path, monkeypatch, capsys):
     assert capsys.readouterr().out == (expected if MPI.COMM_WORLD.rank == 0 else "")
 
 
-def test_api_page_example(tmp_path, monkeypatch, capsys):
-    check_page_example(tmp_path, monkeypatch, capsys)
+EXAMPLES = [pytest.param(0, id="levels"), pytest.param(1, id="notebook")]
+
+
+@pytest.mark.parametrize("k", EXAMPLES)
+def test_api_page_example(tmp_path, monkeypatch, capsys, k):
+    check_page_example(tmp_path, monkeypatch, capsys, k)
 
 
 @pytest.mark.mpi
-def test_api_page_example_parallel(tmp_path, monkeypatch, capsys):
-    check_page_example(tmp_path, monkeypatch, capsys)
+@pytest.mark.parametrize("k", EXAMPLES)
+def test_api_page_example_parallel(tmp_path, monkeypatch, capsys, k):
+    assert MPI.COMM_WORLD.size == 2
+    check_page_example(tmp_path, monkeypatch, capsys, k)
+
+
+def test_notebook_additions(raw_config, tmp_path):
+    """Scene, columns, write_fields and report: what the notebook session uses, checked on their values."""
+    scenes = []
+    result = run(load(raw_config, output__dir=str(tmp_path)), comm=MPI.COMM_SELF,
+                 on_level=lambda level, u_h, scene: scenes.append((level.eps, scene.pressure.x.array.max())))
+    assert len(scenes) == 2 and all(p > 0 for _, p in scenes)  # the manufactured u > 0 somewhere on Γ_C
+    columns = result.columns()
+    assert list(columns["N"]) == [4, 8] and np.isnan(columns["rate_L2"][0]) and columns["L2"].dtype == float
+    assert len(repr(result)) < 120 and repr(result).startswith("Result('t': refinement, 2 rows")
+    path = result.write_fields(tmp_path / "u.xdmf")
+    assert path.exists() and "boundary" in path.read_text() and (tmp_path / "u.h5").exists()
+    written = result.report(tmp_path / "report", plots=False)
+    assert {p.name for p in written} == {"rates.md", "rates.tex", "verdict.tex"}
 
 
 def test_run_passes_u_h_of_a_signorini_study(raw_config, tmp_path):

@@ -3,6 +3,8 @@ import csv
 import importlib.metadata
 import os
 
+from pathlib import Path
+
 import pytest
 import yaml
 
@@ -46,7 +48,7 @@ def test_yaml_syntax_error_names_line(tmp_path, capsys):
 
 def test_missing_file_exit_2(tmp_path, capsys):
     assert cli.main(["run", str(tmp_path / "none.yaml")]) == cli.EXIT_BAD_INPUT
-    assert "No such file" in capsys.readouterr().err
+    assert "none.yaml: no such file or directory" in capsys.readouterr().err
 
 
 def test_existing_results_need_force(tmp_path, capsys):
@@ -102,7 +104,26 @@ def test_help_names_the_config_docs(capsys):
     with pytest.raises(SystemExit):
         cli.main(["run", "--help"])
     out = " ".join(capsys.readouterr().out.split())
-    assert "docs/reference/config.md" in out and "signorini init" in out and "-snes_monitor" in out
+    # documentation there wherever the package is installed: the init command, not a path of the repository
+    assert "docs/" not in out and "signorini init" in out and "-snes_monitor" in out
+
+
+def test_init_says_what_it_wrote(tmp_path, capsys):
+    assert cli.main(["init", str(tmp_path / "c.yaml")]) == cli.EXIT_OK
+    assert capsys.readouterr().out.startswith(f"wrote {tmp_path / 'c.yaml'}: every config key at its default")
+
+
+def test_missing_config_one_line_without_errno(capsys):
+    assert cli.main(["run", "/nonexistent/c.yaml"]) == cli.EXIT_BAD_INPUT
+    assert capsys.readouterr().err == "signorini: error: /nonexistent/c.yaml: no such file or directory\n"
+
+
+def test_did_you_mean_on_a_value(capsys):
+    root = Path(__file__).resolve().parents[2]
+    assert cli.main(["check", str(root / "configs/demo.yaml"), "--set", "epsilon.law=theta-h"]) == cli.EXIT_BAD_INPUT
+    assert "'theta-h' is not one of theta_h, " in capsys.readouterr().err.replace("\n", " ")
+    assert cli.main(["check", str(root / "configs/demo.yaml"), "--set", "epsilon.law=theta-h"]) == cli.EXIT_BAD_INPUT
+    assert "(did you mean 'theta_h'?)" in capsys.readouterr().err
 
 
 def test_petsc_options_on_the_command_line(tmp_path, capsys):

@@ -101,10 +101,12 @@ def test_report_partial_study(make_config, capsys):
     assert cli.main(["report", str(folder), "--digits", "2"]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert out.startswith("study t: 2 of 3 levels (partial study)")
-    assert out.splitlines()[2].split()[-2:] == ["error", "rate"] and "wrote into" in out
+    assert out.splitlines()[2].split()[-3:] == ["error", "rate", "time"] and "wrote into" in out
     table = (folder / "rates.md").read_text().splitlines()
-    # comment, header, rule, 2 levels; h = 1.41/N is left out, so ε (= h) follows N
-    assert len(table) == 1 + 2 + 2 and table[-1].startswith("| 8 | 1.77e-01 |")
+    # comment, header, rule, 2 levels; h = 1.41/N is left out, so ε (= h) follows N; then the recorded verdict
+    assert table[4].startswith("| 8 | 1.77e-01 |") and table[5:7] == ["", "| norm | observed | interval | "
+                                                                          "proven | verdict | why |"]
+    assert "too few levels: 2 converged in the fit, 3 needed" in " ".join(out.split())  # wrapped at 120
     assert r"\toprule" in (folder / "rates.tex").read_text()
     for name in ("convergence", "work_precision", "newton"):
         assert (folder / f"{name}.png").stat().st_size > 0 and (folder / f"{name}.pdf").exists()
@@ -134,7 +136,7 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert cli.main(["compare", *folders]) == cli.EXIT_OK
     out = capsys.readouterr().out
     assert [line.split()[0] for line in out.splitlines()[2:4]] == ["theta1", "theta10"]  # under 2 header lines
-    compared = tmp_path / "results" / "compare"
+    compared = tmp_path / "results" / "compare-theta1-theta10"  # named for its inputs: another compare goes beside
     assert (compared / "compare_convergence.pdf").exists()
     table = (compared / "compare.csv").read_text().splitlines()
     assert table[0].startswith("study,levels,finest_h,time_s,L2_finest,L2_fit,H1_finest,H1_fit")
@@ -142,6 +144,22 @@ def test_compare_two_studies(make_config, tmp_path, capsys):
     assert r"\label{tab:compare}" in (compared / "compare.tex").read_text() and (compared / "compare.md").exists()
     assert cli.main(["compare", *folders, "--label", "one"]) == cli.EXIT_BAD_INPUT
     assert "--label: give one per study" in capsys.readouterr().err
+
+
+def test_report_shows_the_verdict_run_recorded(tmp_path, capsys):
+    """report redraws a study with the verdict its run decided: the same block on the terminal, the same
+    rates.md (verdict lines included)."""
+    path = write(tmp_path, output={"plots": False}, mesh={"refinements": [4, 8, 16]})
+    assert cli.main(["run", path]) == cli.EXIT_OK
+    ran = capsys.readouterr().out
+    folder = tmp_path / "out" / "t"
+    written = (folder / "rates.md").read_text()
+    (folder / "rates.md").unlink()
+    assert cli.main(["report", str(folder), "--no-plots"]) == cli.EXIT_OK
+    reported = capsys.readouterr().out
+    block = ran[ran.index("verification:"):ran.index("wrote")]
+    assert "agrees" in block and block in reported
+    assert (folder / "rates.md").read_text() == written
 
 
 def test_compare_shows_the_rate_run_shows(make_config, tmp_path):

@@ -25,7 +25,6 @@ def test_p2_takes_the_exact_rule_by_default(make_config):
     ({"element": {"order": 2}}, "element.order", "unknown"),
     ({"element": {"degree": 2}, "contact_quadrature": "vertex"}, "contact_quadrature", "lumps P1 only"),
     ({"element": {"degree": 2}, "output": {"fields": True}}, "output.fields", "element.degree 1 only"),
-    ({"element": {"degree": 2}, "dimension": 3, "mesh": {"kind": "unit_cube"}}, "element.degree", "2-D"),
     ({"element": {"degree": 2}, "study_type": "signorini", "alpha": None, "epsilon": None,
       "problem": {"exact": U_SIGNORINI, "exact_solves": "signorini"}}, "element.degree", "P1 only"),
 ])

@@ -41,7 +41,7 @@ OTHER = {
     "mesh.sizes": [0.3], "mesh.path": str(ROOT / "meshes/examples/quarter_annulus.msh"), "mesh.refine": "uniform",
     "mesh.cache": "cache", "contact": "left", "problem.exact": "x*(1-y)", "problem.f": "-1", "problem.g": "0.5",
     "problem.exact_solves": "signorini", "problem.define": {"r": "x*y"}, "problem.pde": "elasticity",
-    "problem.method": "nitsche", "problem.gap": "0.1", "problem.normal": [0.0, -2.0],
+    "problem.method": "nitsche", "problem.gap": "0.1", "problem.normal": [0.0, -2.0], "problem.hertz_radius": 2.0,
     "positive_part.kind": "smooth", "positive_part.delta": "1e-3*h", "contact_quadrature": "vertex",
     "element.degree": 2, "solver.rtol": 1e-9, "solver.atol": 1e-11, "solver.max_it": 20, "solver.linear": "direct",
     "solver.line_search": "basic", "solver.on_failure": "stop", "solver.petsc_options": {"ksp_type": "gmres"},
@@ -117,6 +117,7 @@ def test_key_is_applied_or_refused_in_every_kind_of_study(path):
 
 # keys that no context applies when set alone (each is refused there, naming it), with why
 NOT_APPLIED_ALONE = {
+    "problem.hertz_radius": "the physical elastic problem only (no exact): the elasticity context has one",
     "problem.method": "only penalty is registered: another method is refused",
     "dimension": "checked against the mesh, which sets it",
     # applied together with the keys they need, as in the contexts that give them: file, elasticity, signorini

@@ -27,7 +27,7 @@ NAMES = set(units.PDES) | set(units.METHODS) | set(units.STUDY_TYPES)
 INTERFACE = {"problem.pde": ("NAME", "DOC", "KEYS", "SECTION", "DEGREES", "VECTOR", "VI",
                              "problem", "check_config"),
              "problem.method": ("NAME", "DOC", "PDES", "SECTION", "UNUSED", "check_config"),
-             "study_type": ("NAME", "DOC", "POINTS", "VI", "GEOMETRY", "FIELDS", "DEGREES", "UNUSED", "LIMIT",
+             "study_type": ("NAME", "DOC", "POINTS", "VI", "LIMIT_ERROR", "GEOMETRY", "FIELDS", "DEGREES", "UNUSED", "LIMIT",
                             "SECTION", "check_config")}
 
 
@@ -80,7 +80,8 @@ def digest(data):
 
 # digests of the resolved dict and the hashed settings of every shipped config (a map's points too), computed
 # before the config was cut into modules; problem.method was added after them, at its default penalty, and the
-# P2 configs were recomputed when their contact_quadrature default became the exact rule
+# P2 configs were recomputed when their contact_quadrature default became the exact rule, hertz.yaml when it
+# gained the Hertz measures and a fifth level
 SHIPPED = json.loads((Path(__file__).parent / "shipped_configs.json").read_text())
 
 

@@ -63,14 +63,32 @@ BAD = [
                  id="exact-solves-on-elastic"),
     pytest.param({"problem": {"normal": [0, 0]}}, "problem.normal: must not be zero", id="normal-zero"),
     pytest.param({"problem": {"pde": "stokes"}}, "problem.pde: 'stokes' is not one of poisson, elasticity", id="pde"),
-    pytest.param({"study_type": "signorini", "problem": {"pde": "elasticity"}},
-                 "study_type: signorini solves the scalar", id="vi-on-elastic"),
+    pytest.param({"study_type": "signorini", "alpha": None, "epsilon": None},
+                 "problem.exact: study_type signorini with pde: elasticity solves the physical problem",
+                 id="vi-with-exact"),
+    pytest.param({"study_type": "total_error", "problem": {"exact": None, "gap": "x - 1"}, "alpha": None,
+                  "epsilon": None, "limit": {"alpha": [1], "exponent": [1]}},
+                 "study_type: total_error measures u_S − u_h: pde: elasticity has no manufactured",
+                 id="total-elastic"),
+    pytest.param({"study_type": "signorini", "problem": {"exact": None, "gap": "x - 1", "normal": [1, 0]},
+                  "alpha": None, "epsilon": None}, "problem.normal: study_type signorini bounds u·n on the face's "
+                 "own normal [0.0, -1.0]", id="vi-other-normal"),
+    pytest.param({"problem": {"hertz_radius": 1.0}}, "problem.hertz_radius: a Hertz contact is the physical "
+                 "problem", id="hertz-manufactured"),
+    pytest.param({"problem": {"exact": None, "hertz_radius": 0}}, "problem.hertz_radius: must be > 0",
+                 id="hertz-radius"),
+    pytest.param({"problem": {"exact": None}, "verification": {"measures": ["hertz"]}},
+                 "verification.measures[0]: hertz needs problem.hertz_radius", id="hertz-measure"),
 ]
 SCALAR_BAD = [
     pytest.param({"material": {"E": 1.0}}, "material: only meaningful with problem.pde: elasticity", id="material"),
     pytest.param({"problem": {"gap": "0"}}, "problem.gap: only meaningful with problem.pde: elasticity", id="gap"),
     pytest.param({"problem": {"normal": [0, -1]}}, "problem.normal: only meaningful with problem.pde: elasticity",
                  id="normal"),
+    pytest.param({"problem": {"hertz_radius": 1.0}},
+                 "problem.hertz_radius: only meaningful with problem.pde: elasticity", id="hertz"),
+    pytest.param({"verification": {"measures": ["hertz"]}}, "verification.measures[0]: hertz measures an elastic",
+                 id="hertz-measure"),
 ]
 
 

@@ -1,6 +1,6 @@
-"""P2 linear elasticity (element.degree 2, 2-D): P2's orders on a smooth manufactured case with ε = h, and
-the Γ_C quantities of a solved level exact against a brute-force integral of its own u_h, evaluated by
-dolfinx along Γ_C; 2 ranks give the serial study."""
+"""P2 linear elasticity (element.degree 2): P2's orders on a smooth 2-D manufactured case with ε = h, and the
+Γ_C quantities of a solved level exact against a brute-force integral of its own u_h, evaluated by dolfinx
+along Γ_C; 2 ranks give the serial study in 2-D and 3-D (3-D Γ_C rules: tests/problems/test_p2_triangles.py)."""
 import numpy as np
 import pytest
 import ufl
@@ -117,10 +117,17 @@ def test_p2_elastic_contact_quantities_exact(make_config, changes):
         assert x[name] == pytest.approx(found[name], rel=1e-10), name
 
 
+# 3-D: u·n = −u_z = −0.1 cos(2πx) cos(πy) on z = 0, a contact set whose edge is a curve across the facets
+P2_ELASTIC_3D = {"dimension": 3, "mesh": {"kind": "unit_cube", "refinements": [2, 3]}, "problem": {
+    "exact": ["0.1*sin(pi*x)*z", "0.05*sin(pi*y)*z", "0.1*cos(2*pi*x)*cos(pi*y)*(1 - z)**2"]}}
+
+
 @pytest.mark.mpi
-def test_p2_elastic_two_ranks_equal_serial(make_config):
+@pytest.mark.parametrize("changes", [pytest.param({"mesh": {"refinements": [4, 8]}}, id="2d"),
+                                     pytest.param(P2_ELASTIC_3D, id="3d")])
+def test_p2_elastic_two_ranks_equal_serial(make_config, changes):
     """Every error and Γ_C quantity of the P2 elastic study on 2 ranks is the serial one to 1e-10 relative."""
-    cfg = make_config(**merge(P2_ELASTIC, {"mesh": {"refinements": [4, 8]}}))
+    cfg = make_config(**merge(P2_ELASTIC, changes))
     runs = [studies.run_study(cfg, comm=comm) for comm in (MPI.COMM_SELF, MPI.COMM_WORLD)]
     for one, two in zip(*runs):
         assert one.errors.keys() == two.errors.keys() and set(QUANTITIES) <= one.extra.keys()

@@ -60,5 +60,5 @@ def test_p2_penetration_and_contact_measure_exact(comm):
 @pytest.mark.fast
 def test_error_quadrature_rises_with_the_degree():
     for h in (0.1, 0.01):
-        assert element.error_degree(2, h) == element.error_degree(1, h) + 2
+        assert element.error_degree(2, h, 2) == element.error_degree(1, h, 2) + 2
     assert element.product_degree(2) == 4

@@ -82,7 +82,9 @@ def test_contact_force_and_errors_of_a_known_function():
                                                 ("unit_cube", 32, 1, 8),     # h = 0.054
                                                 ("unit_cube", 64, 1, 6),     # h = 0.027
                                                 ("unit_square", 32, 2, 10),
-                                                ("unit_square", 64, 2, 8)])
+                                                ("unit_square", 64, 2, 8),
+                                                ("unit_cube", 4, 2, 14),     # h = 0.43
+                                                ("unit_cube", 8, 2, 12)])    # h = 0.22
 def test_error_degree_by_level(kind, n, k, degree):
     domain = meshes.build(config.Mesh(kind), "bottom", n, MPI.COMM_SELF)
     assert measure.error_degree(element.space(domain.mesh, k), domain.h) == degree

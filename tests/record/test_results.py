@@ -22,7 +22,7 @@ def test_half_finished_study_is_readable(partial_study):
     with h5py.File(cfg.output_dir / "study.h5") as h5:
         assert h5.attrs["levels_done"] == 2 and h5.attrs["mpi_size"] >= 1
         assert "alpha: 2.0" in h5.attrs["config"] and h5.attrs["version_dolfinx"] == "0.5.2"
-        assert sorted(h5) == ["level_00", "level_01", "table", "verification", "work_precision"]
+        assert sorted(h5) == ["level_00", "level_01", "pressure", "table", "verification", "work_precision"]
         assert h5["table/L2"][1] == pytest.approx(float(rows[1]["L2"]), rel=1e-15)
         assert h5["level_01"].attrs["N"] == 8 and len(h5["level_01/residuals"]) >= 2
     assert not list(cfg.output_dir.glob(".*.tmp*"))  # atomic replace left no temporary files
@@ -91,7 +91,7 @@ def test_every_table_reads_back_as_written(make_config):
     named = studies.of(cfg.study_type).tables(cfg, levels)
     results.write_files(studies.study_of(cfg, levels), 1)
     study = results.load(cfg.output_dir)
-    assert list(study.tables) == list(named) == ["rates", "work_precision"]
+    assert list(study.tables) == list(named) == ["rates", "pressure", "work_precision"]
     for name, rows in named.items():
         for read, written in zip(study.tables[name], rows):
             assert read.keys() == written.keys()

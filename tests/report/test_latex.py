@@ -1,16 +1,16 @@
 """LaTeX of the rate tables: escaped text, numbers, the config's expressions typeset, and tables that
 compile in a plain article without an overfull box whatever the columns."""
 import re
-import shutil
 import subprocess
 from pathlib import Path
 
 import pytest
+import yaml
 
 from signorini_cli import config
 from signorini_cli.config import expressions
 from signorini_cli.report import latex, tables
-from test_report import DEMO, demo_like
+from test_report import DEMO, demo_like, needs_pdflatex
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -63,8 +63,9 @@ def test_text_cell_escaped_in_latex_and_markdown():
 @pytest.mark.fast
 def test_caption_from_the_study_fields():
     caption = tables.caption_of("demo_1", DEMO)
-    assert caption == (r"Study demo\_1: $d = 2$, $\alpha = 2$, $\varepsilon = h$, exact solution "
-                       r"$u = \sin(2 \pi x) (1 - y)^{2}$, $\Gamma_C$: \texttt{bottom}")
+    assert caption == (r"Errors and observed rates: $d = 2$, $\alpha = 2$, $\varepsilon = h$, exact solution "
+                       r"$u = \sin(2 \pi x) (1 - y)^{2}$, contact boundary $\Gamma_C$: bottom")  # no slug by default
+    assert tables.caption_of("demo_1", DEMO, slug=True).startswith(r"Study demo\_1: $d = 2$")
     data = config.load(Path(__file__).resolve().parents[2] / "configs" / "paper" / "data-push-constant-eps.yaml")
     assert "data $f = " in tables.caption_of("d", data) and r"$\varepsilon = " in tables.caption_of("d", data)
 
@@ -126,17 +127,17 @@ CASES = {
 }
 
 
-@pytest.mark.skipif(not shutil.which("pdflatex"), reason="pdflatex not installed")
+@needs_pdflatex
 @pytest.mark.parametrize("case", CASES)
 def test_tables_compile_in_a_plain_article_without_overfull_box(tmp_path, case):
     assert compile_log(tmp_path, CASES[case]()).count("Overfull") == 0
 
 
-def compile_log(folder, tex):
-    """pdflatex's log of `tex` \\input into \\documentclass{article} with booktabs (its header names it)."""
-    (folder / "rates.tex").write_text(tex)
-    (folder / "doc.tex").write_text("\\documentclass{article}\n\\usepackage{booktabs}\n"
-                                    "\\begin{document}\n\\input{rates.tex}\n\\end{document}\n")
+def compile_log(folder, tex, packages="booktabs", name="rates.tex"):
+    """pdflatex's log of `tex` \\input into \\documentclass{article} with `packages` (its header names booktabs)."""
+    (folder / name).write_text(tex)
+    (folder / "doc.tex").write_text(f"\\documentclass{{article}}\n\\usepackage{{{packages}}}\n"
+                                    f"\\begin{{document}}\nText.\n\n\\input{{{name}}}\n\\end{{document}}\n")
     done = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", "-no-shell-escape",
                            "doc.tex"], cwd=folder, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout[-2000:]
@@ -157,3 +158,51 @@ def test_every_function_of_the_expression_language_typesets(name):
     arguments = ", ".join(["x", "y"][:expressions.ARITY.get(name, 1)])
     tex = latex.expression(expressions.parse(f"{name}({arguments})", {"x", "y"}).tree)
     assert tex.endswith(f"({arguments})") or tex in (r"\sqrt{x}", "|x|")
+
+
+# every study type on coarse levels (about a minute in all): (config, overrides)
+STUDY_TYPES = {
+    "refinement": ("configs/paper/square-alpha2-theta-small.yaml", ["mesh.refinements=[4,8,16]"]),
+    "data-only": ("configs/paper/data-push-theta-h.yaml", ["mesh.refinements=[4,8,16]"]),
+    "p2": ("configs/elements/p2-square-alpha2.yaml", ["mesh.refinements=[4,8,16]"]),
+    "elasticity": ("configs/elasticity/square-alpha2.yaml", ["mesh.refinements=[4,8,16]"]),
+    "hertz": ("configs/elasticity/hertz.yaml", ["mesh.sizes=[0.2,0.1,0.05]"]),
+    "signorini": ("configs/limit/signorini.yaml", ["mesh.refinements=[4,8,16]"]),
+    "epsilon_sweep": ("configs/limit/sweep.yaml", ["mesh.refinements=[4,8]", "limit.epsilon.count=3",
+                                                   "limit.epsilon.stop=1e-4"]),
+    "total_error": ("configs/limit/total.yaml", ["mesh.refinements=[4,8,16]", "limit.alpha=[1,2]",
+                                                 "limit.exponent=[1,2]"]),
+}
+
+
+MAP = {"study": "m", "study_type": "map", "dimension": 2, "alpha": 2.0, "epsilon": {"law": "theta_h", "theta": 1.0},
+       "mesh": {"kind": "unit_square", "refinements": [4, 8, 16]}, "contact": "bottom",
+       "problem": {"exact": "sin(2*pi*x)*(1-y)**2"}, "map": {"grid": {"epsilon.theta": [0.1, 10], "alpha": [1, 2]}}}
+
+
+def run_kind(kind, out):
+    """Run a study of `kind` (a key of STUDY_TYPES, map or compare: of two refinement studies) into `out`."""
+    from signorini_cli.app import cli
+    if kind == "map":
+        (out.parent / "map.yaml").write_text(yaml.safe_dump(MAP))
+        return cli.main(["run", str(out.parent / "map.yaml"), "--output", str(out), "--quiet"])
+    if kind == "compare":
+        for k in ("refinement", "p2"):
+            run_kind(k, out / k)
+        return cli.main(["compare", *map(str, sorted(out.glob("*/*/"))), "--label", "α=2", "--label", "p = 2"])
+    path, overrides = STUDY_TYPES[kind]
+    sets = [arg for o in overrides for arg in ("--set", o)]
+    return cli.main(["run", str(ROOT / path), "--output", str(out), "--quiet", *sets])
+
+
+@needs_pdflatex
+@pytest.mark.parametrize("kind", list(STUDY_TYPES) + ["map", "compare"])
+def test_every_tex_of_a_study_type_is_one_float_that_compiles_cleanly(tmp_path, kind):
+    assert run_kind(kind, tmp_path / "out") in (0, 1)
+    written = sorted((tmp_path / "out").rglob("*.tex"))
+    assert written and (kind != "compare" or any(t.name == "compare.tex" for t in written))
+    for tex in written:
+        text = tex.read_text()
+        assert text.count(r"\begin{table}") == 1 and text.count(r"\label{") == 1, tex
+        log = compile_log(tex.parent, text, packages="booktabs,amsmath,graphicx", name=tex.name)
+        assert not re.search(r"^(Overfull|Underfull|!)", log, re.M), (tex, log[-2000:])

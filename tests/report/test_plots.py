@@ -57,7 +57,8 @@ def test_triangles_proven_marked_apart_from_fitted():
     proven, fitted = ax.patches  # drawn in the norms' order: L2, H1
     assert proven.get_facecolor()[3] == 0 and proven.get_linestyle() != "solid"  # open, dashed
     assert fitted.get_facecolor()[3] > 0 and fitted.get_linestyle() == "-"  # filled, solid
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["L²  (fit 1.90)", "H¹  (fit 0.97)"]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [r"$\|u-u_h\|_{L^2}$  (fit 1.90)",
+                                                                     r"$|u-u_h|_{H^1}$  (fit 0.97)"]
 
 
 def test_plot_slopes_read_fit_levels():
@@ -66,8 +67,24 @@ def test_plot_slopes_read_fit_levels():
     rows[-1]["L2"] = rows[-2]["L2"] * 0.5
     with plots.styled():
         two, four = (plots.convergence(rows, fit_levels=k) for k in (2, 4))
-    assert two.axes[0].get_legend().get_texts()[0].get_text() == "L²  (fit 1.00)"
-    assert four.axes[0].get_legend().get_texts()[0].get_text() != "L²  (fit 1.00)"
+    assert two.axes[0].get_legend().get_texts()[0].get_text() == r"$\|u-u_h\|_{L^2}$  (fit 1.00)"
+    assert four.axes[0].get_legend().get_texts()[0].get_text() != r"$\|u-u_h\|_{L^2}$  (fit 1.00)"
+
+
+def test_figure_fit_is_the_verdicts_rate_also_with_a_log_factor(make_config):
+    # alpha = 3 (a bound with |ln h|): the legend's fit and the verdict's rate are one slope, the plain one
+    import math
+    from signorini_cli.analysis import verdict
+    from signorini_cli.solve.solver import Outcome
+    from signorini_cli.studies import Level
+    from signorini_cli.studies.level import rate_table
+    outcome = Outcome(True, "CONVERGED_FNORM_ABS", 5, 5, (1.0,))
+    levels = [Level(k, round(1 / h), h, 100, h, outcome, {"L2": h**2 * -math.log(h)}, 1.0) for k, h in enumerate(H)]
+    (l2,) = verdict.summarize(make_config(alpha=3.0), levels).norms
+    with plots.styled():
+        fig = plots.convergence(rate_table(levels), {"L2": 2.0}, fit_levels=3)
+    assert fig.axes[0].get_legend().get_texts()[0].get_text().endswith(f"(fit {l2.observed:.2f})")
+    assert round(l2.observed, 2) != round(l2.log_corrected, 2)  # the other fit would show another number
 
 
 def test_many_norms_two_per_panel_and_per_norm_figures(tmp_path):
@@ -81,7 +98,7 @@ def test_many_norms_two_per_panel_and_per_norm_figures(tmp_path):
 
 def page_checks(fig, width_pt):
     """The figure is width_pt wide, every text at least 8 pt, no legend overlapping an axes' data area."""
-    assert fig.get_figwidth() * 72 == pytest.approx(width_pt)
+    assert fig.get_figwidth() * 72.27 == pytest.approx(width_pt)  # TeX points: \includegraphics at 100 %
     renderer = FigureCanvasAgg(fig).get_renderer()
     fig.draw(renderer)
     sizes = [t.get_fontsize() for t in fig.findobj(Text) if t.get_text()]
@@ -189,7 +206,7 @@ def test_single_level_study_plots_without_triangles(tmp_path):
     with plots.styled():
         fig = plots.convergence(rows)
     assert triangle_labels(fig.axes[0]) == [] and not fig.axes[0].patches
-    assert fig.axes[0].get_legend().get_texts()[0].get_text() == "L²  (one level)"
+    assert fig.axes[0].get_legend().get_texts()[0].get_text() == r"$\|u-u_h\|_{L^2}$  (one level)"
     assert sorted(p.name for p in plots.write_all(rows, tmp_path)) == sorted(
         f"{n}.{ext}" for n in ("convergence", "work_precision", "newton") for ext in ("pdf", "png"))
 
@@ -202,3 +219,32 @@ def test_run_without_plots_never_imports_matplotlib(tmp_path):
     done = subprocess.run([sys.executable, "-c", code, str(cfg)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "t" / "rates.tex").exists() and not list((tmp_path / "t").glob("*.png"))
+
+
+@pytest.mark.fast
+@pytest.mark.parametrize("width_pt", [345.0, 246.0])
+def test_pdf_page_is_the_width_in_tex_points_computer_modern(tmp_path, width_pt):
+    paths = plots.write_all(synthetic({"L2": 2.0, "H1": 1.0}), tmp_path, width=width_pt)
+    pdf = next(p for p in paths if p.name == "convergence.pdf").read_bytes()
+    media = re.search(rb"/MediaBox \[\s*0 0 ([\d.]+)", pdf)
+    assert float(media[1]) * 72.27 / 72 == pytest.approx(width_pt, abs=0.1)  # bp in the PDF, pt in TeX
+    assert b"Cmr10" in pdf and b"STIX" not in pdf and b"DejaVu" not in pdf  # no fallback glyph needed
+
+
+@pytest.mark.fast
+def test_font_key_chooses_stix(tmp_path):
+    paths = plots.write_all(synthetic({"L2": 2.0}), tmp_path, font="stix")
+    pdf = next(p for p in paths if p.name == "convergence.pdf").read_bytes()
+    assert b"STIXGeneral" in pdf and b"Cmr10" not in pdf
+
+
+@pytest.mark.fast
+def test_twelve_curves_twelve_styles():
+    styles = [tuple(map(str, plots.curve_style(i).values())) for i in range(12)]
+    assert len(set(styles)) == 12
+
+
+@pytest.mark.fast
+def test_sub_study_legends_are_their_values():
+    assert plots.legend_of("alpha1.5-p2") == r"$\alpha = 1.5$, $p = 2$"
+    assert plots.legend_of("signorini") == "Signorini VI"

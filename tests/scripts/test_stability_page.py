@@ -1,19 +1,14 @@
 """scripts/stability.py's contact-rule sections (docs/stability.md, `make stiff`): gaps, h/ε classes and the
-ε → 0 verdict computed from the runs' tables (here hand-made tables), and the runs themselves once
-`contact_quadrature` is a config key."""
-import dataclasses
+ε → 0 verdict computed from the runs' tables (here hand-made tables), and the runs themselves on small meshes."""
 import runpy
 import sys
 from pathlib import Path
 
 import pytest
 
-from signorini_cli import config
-
 SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 sys.path.insert(0, str(SCRIPTS))  # the page generators share scripts/provenance.py
 stability = runpy.run_path(str(SCRIPTS / "stability.py"))
-HAS_RULES = "contact_quadrature" in {f.name for f in dataclasses.fields(config.Config)}
 
 
 def level(n, eps, l2, converged=True, its=2):
@@ -67,7 +62,6 @@ def test_limit_verdict_from_the_fitted_slope():
     assert "| 2 | 1 | 16 | exact | 1.000e-03 | 1.000e-15 | 1.0e-12 | 1.00 |" in summary
 
 
-@pytest.mark.skipif(not HAS_RULES, reason="contact_quadrature arrives with the contact branch")
 def test_rule_runs_small(tmp_path):
     found = stability["rule_runs"](stability["Runs"](tmp_path), cases=((2, "2.0"),), eps_values=("h", "1.0e-8"),
                                    levels={2: "[4, 8]"})

@@ -174,6 +174,10 @@ def test_chunks_then_report_give_the_whole_map(tmp_path, capsys):
     (tmp_path / "m" / "map.csv").unlink()
     assert cli.main(["report", str(tmp_path / "m"), "--no-plots"]) == 0
     assert map_rows(tmp_path / "m") == chunked
+    capsys.readouterr()
+    assert cli.main(["report", str(tmp_path / "m"), "--columns", "pos_gc_scaled"]) == 2  # refused, not ignored
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("signorini: error:") and "--columns: applies to a study's" in err
     assert cli.main(["run", path, "--points", "2-9"]) == 2
     assert "--points: 2-9 is not within the map's points 0-3" in capsys.readouterr().err
 
