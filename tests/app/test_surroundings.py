@@ -71,9 +71,9 @@ def old_study(tmp_path):
 def test_force_starts_over(tmp_path):
     study = old_study(tmp_path)
     assert cli.main(["run", write_config(tmp_path), "--force", "--quiet"]) == cli.EXIT_OK
-    assert sorted(p.name for p in study.iterdir()) == ["notes.txt", "rates.csv", "rates.md", "rates.tex",
-                                                       "solution.h5", "status.txt", "study.h5", "summary.csv",
-                                                       "work_precision.csv"]
+    assert sorted(p.name for p in study.iterdir()) == ["notes.txt", "pressure.csv", "rates.csv", "rates.md",
+                                                       "rates.tex", "solution.h5", "status.txt", "study.h5",
+                                                       "summary.csv", "verdict.tex", "work_precision.csv"]
     assert (study / "notes.txt").read_text() == "old\n"  # not a result of the study's: kept
 
 
