@@ -27,9 +27,9 @@ def main(argv=None):
     parser.add_argument("--out", default="docs/elements.md", help="the page to write")
     args = parser.parse_args(argv)
     runs = [(path, config.load(path, [f"output.dir={args.output}"] if args.output else [])) for path in args.configs]
-    studies = {(cfg.problem.pde, cfg.element.degree, cfg.problem.exact_solves, str(cfg.contact_quadrature)):
-               (path, cfg, results.load(cfg.output_dir).rows) for path, cfg in runs}
-    scalar = {key[1:]: study for key, study in studies.items() if key[0] == SCALAR}
+    studies = {(cfg.problem.pde, cfg.dimension, cfg.element.degree, cfg.problem.exact_solves,
+                str(cfg.contact_quadrature)): (path, cfg, results.load(cfg.output_dir).rows) for path, cfg in runs}
+    scalar = {key[2:]: study for key, study in studies.items() if key[:2] == (SCALAR, 2)}
     p1, p2 = scalar[(1, "compliance", "exact")], scalar[(2, "compliance", str(P2_RULE))]
     checks = [v for (degree, solves, rule), v in scalar.items()
               if degree == 2 and solves == "compliance" and rule != str(P2_RULE)]
@@ -41,9 +41,10 @@ def main(argv=None):
     limit = [scalar.get((k, "signorini", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
     if all(limit):
         sections.append(signorini_section(*limit, p1, p2))
-    elastic = [studies.get((ELASTIC, k, "compliance", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
-    if all(elastic):
-        sections.append(elastic_section(*elastic))
+    for dim in (2, 3):
+        elastic = [studies.get((ELASTIC, dim, k, "compliance", rule)) for k, rule in ((1, "exact"), (2, str(P2_RULE)))]
+        if all(elastic):
+            sections.append(elastic_section(*elastic))
     out.write_text("\n\n".join(sections) + "\n")
     print(f"wrote {out}")
     return 0
@@ -119,13 +120,15 @@ def elastic_section(p1, p2):
     fit1, fit2 = ({norm: fit(rows, norm) for norm in NORMS} for rows in (rows1, rows2))
     last1, last2 = rows1[-1], rows2[-1]
     return "\n".join([
-        "## Linear elasticity: P2 against P1",
+        f"## Linear elasticity, {cfg.dimension}-D: P2 against P1",
         "",
         f"`{path1}` and `{path2}`: linear elasticity with normal compliance ([elasticity.md](elasticity.md)), "
-        f"plane strain, E = {cfg.material.E:g}, ν = {cfg.material.nu:g}, α = {cfg.alpha:g}, ε = h, "
+        + ("plane strain, " if cfg.dimension == 2 else "")
+        + f"E = {cfg.material.E:g}, ν = {cfg.material.nu:g}, α = {cfg.alpha:g}, ε = h, "
         f"u_ex = ({', '.join(f'`{c.text}`' for c in cfg.problem.exact)}), contact on the `{cfg.contact}` face. "
         "The P2 contact term is integrated as the scalar problem's: each Γ_C facet cut at the zeros of the "
-        "quadratic w_h = u_h·n − g0, w = u·n − g0. `pos_gc` = "
+        "quadratic w_h = u_h·n − g0 (on a triangle also where that conic is tangent to the rule's lines), "
+        "w = u·n − g0. `pos_gc` = "
         "‖[w]_+ − [w_h]_+‖_{L³(Γ_C)}; `H1` the seminorm of the vector error.",
         "",
         "P1:",

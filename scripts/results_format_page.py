@@ -21,6 +21,7 @@ FILES = """| file | written | content |
 | `total.csv`, `<sub-study>/` | after every solve of a `total_error` study | per sub-study its finest errors and rates; each sub-study's own record in its folder |
 | `status.txt` | at the start, after every solve and when the study ends (atomically) | one line: `running (k of n levels done)`, `complete`, `interrupted at level k` or `failed at level k: reason` |
 | `<table>.md`, `<table>.tex` | at the end of `run`, and by `signorini report` | every table the study type reports (`rates`, `sweep`, `fitted`, `reference`, `total`), for notebooks and papers |
+| `verdict.tex` | at the end of `run` | the verdict of a refinement or signorini study, a LaTeX float |
 | `convergence`, `work_precision`, `newton`, `model_error`, `compare_*` `.png` / `.pdf` | at the end of `run` when `output.plots: true`, and by `signorini report` | the study type's figures |
 | `fields/level_NN.xdmf` (+ `.h5`) | after each level when `output.fields: true` | u_h, its error and the contact indicator for ParaView |
 
@@ -46,9 +47,12 @@ AFTER = r"""## rates.md and rates.tex
 
 The rate table in the deal.II `ConvergenceTable` style: N, h, DoFs, ε, Newton iterations, then for each norm
 its error and its rate. Errors, h and ε in scientific notation with `output.digits` digits after the point
-(`signorini report --digits` overrides), rates with two decimals, `–`/`--` where undefined. `rates.tex` is a
-`tabular` for `\usepackage{booktabs}` with numbers as `$m \cdot 10^{k}$`; levels that did not converge are
-marked `(failed)` and listed after the table.
+(`signorini report --digits` overrides), rates with two decimals, `–`/`--` where undefined. `rates.tex` is one
+`table` float with a `\label` for `\usepackage{booktabs}`, numbers as `$m\times10^{k}$`, norms written out as
+its headers, the columns its caption fixes (h = c/N, ε = c h^q, a value the same on every level) left out, split
+by norms where it would pass `\textwidth`; levels that did not converge are marked `(failed)` and listed in the
+caption. `verdict.tex` (at the end of `run`) is the verdict as a float of its own: per norm the observed rate
+with its interval, the proven rate, the class and the paper's result.
 
 ## Fields (output.fields: true)
 

@@ -41,14 +41,15 @@ def load(source, **overrides):
 class Scene:
     """What on_level(level, u_h, scene) sees of a level besides u_h: the boundary tags (a dolfinx MeshTags)
     with the markers of Γ_C and Γ_D, the measure ds_c on Γ_C, the exact solution (UFL; None for data-only
-    scenes) and the contact pressure p_h = ε^{-1}[w_h]_+^α as a P1 function (w_h = u_h, or u_h·n − g for
-    elasticity; None for the Signorini problem, which has no ε)."""
+    scenes), the contact pressure p_h = ε^{-1}[w_h]_+^α as a P1 function (w_h = u_h, or u_h·n − g for
+    elasticity; None for the Signorini problem, which has no ε) and the errors' quadrature degree."""
     facet_tags: object
     gamma_c: int
     gamma_d: int
     ds_c: object
     u_exact: object
     pressure: object
+    error_degree: int = None  # the quadrature degree the level's errors were integrated with (None: by h)
 
     def __repr__(self):
         return f"Scene(Γ_C = tag {self.gamma_c}, Γ_D = tag {self.gamma_d}, exact: {self.u_exact is not None})"
@@ -68,8 +69,8 @@ def scene_of(cfg, level, u_h):
         pressure = fem.Function(space, name="pressure")
         pressure.interpolate(fem.Expression(ufl.max_value(w_h, 0) ** cfg.alpha / level.eps,
                                             space.element.interpolation_points()))
-    return Scene(domain.facet_tags, meshes.CONTACT, meshes.DIRICHLET, ds_c,
-                 forms.u_exact if forms is not None else None, pressure)
+    return Scene(domain.facet_tags, meshes.CONTACT, meshes.DIRICHLET, ds_c, forms.u_exact if forms is not None
+                 else None, pressure, domain.quadrature[1] if domain.quadrature else None)
 
 
 @dataclass(frozen=True, repr=False)

@@ -21,6 +21,7 @@ CONTACT_TOL = 1e-12  # relative to max|g0|: a node is in contact when u·n − g
 
 
 def space(cfg, msh):
+    """P1 vector Lagrange: the nodal bounds are u·n ≤ g0 on Γ_C for P1 only."""
     return elasticity.space(cfg, msh)
 
 
@@ -35,6 +36,7 @@ def dirichlet_condition(V, domain, u_exact):
 
 
 def errors(u_h, u_exact, h):
+    """{'L2', 'H1'} of u − u_h (the study's interface; the physical problem has no u)."""
     return measure.errors(u_h, u_exact, h)
 
 

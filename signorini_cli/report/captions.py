@@ -4,8 +4,9 @@ from . import latex
 
 MODEL_ERROR = r"$e = \|u_{\varepsilon,h}-u_{S,h}\|$"  # compliance against discrete Signorini, one mesh
 SWEEP = ("Model error " + MODEL_ERROR + r" between the compliance solution $u_{\varepsilon,h}$ and the discrete "
-         r"Signorini solution $u_{S,h}$ on each mesh, for each $\alpha$ and $\varepsilon$, in the norms the columns "
-         r"name; rate: $\log(e_k/e_{k-1})/\log(\varepsilon_k/\varepsilon_{k-1})$ between successive $\varepsilon$")
+         r"Signorini solution $u_{S,h}$ on the finest mesh, for each $\alpha$ and $\varepsilon$, in the norms the "
+         r"columns name (every mesh and norm: sweep.md); rate: "
+         r"$\log(e_k/e_{k-1})/\log(\varepsilon_k/\varepsilon_{k-1})$ between successive $\varepsilon$")
 FITTED = (r"Slope of $\log e$ against $\log\varepsilon$, " + MODEL_ERROR + r", fitted per mesh and $\alpha$ over "
           r"the smallest <fit> values of $\varepsilon$ (from $\varepsilon_{\max}$ to $\varepsilon_{\min}$)")
 TOTAL = (r"Total error against the Signorini solution $u_S$ of compliance solutions with $\varepsilon = <eps>$, "

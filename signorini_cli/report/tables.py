@@ -22,6 +22,7 @@ FORMATS = {"h": ".3e", "epsilon": ".3e", "time_s": ".2f"}
 FORMATS.update({"h_min": ".3e", "gamma_c_measure": ".6f", "gamma_c_quasi_uniformity": ".3f", "alpha": "g", "p": "g"})
 CONSTANT = ("N", "levels", "converged", "newton_its", "points")  # one value on every row: said in the caption
 PARAMETERS = ("alpha", "p")  # a study's parameters: 1, 1.5, not 1.000e+00
+DETAILS = ("time_s", "dofs", "newton_its")  # how a solve went: in the .md and .csv, not in a table of results
 NAMING = ("study", "solver")  # a sub-study's name and kind: α and p say both (a table of an α × p sweep)
 SPACES = {"L2": "$L^2$", "H1": "$H^1$", "L2_gc": r"$L^2(\Gamma_C)$", "L2_gamma_c": r"$L^2(\Gamma_C)$",
           "pos_gc": r"$L^{\alpha+1}(\Gamma_C)$", "eps_max": r"$\varepsilon_{\max}$",
@@ -262,9 +263,11 @@ def latex_table(rows, digits=3, caption="", columns="paper", proven=None, key=No
     """The rate table as a booktabs `table` float (needs \\usepackage{booktabs}, said in its first line):
     "error | rate" under each norm's short name, numbers as $2.303\\times10^{-2}$, columns N or the
     caption already gives left out, a layout that fits \\textwidth (latex.table), a \\label `key`; `short`:
-    norms headed by their space alone (a table whose errors are not u - u_h: the caption says what)."""
+    norms headed by their space alone (a table whose errors are not u - u_h: the caption says what), the
+    solver's details (time, DoFs, iterations) left to the Markdown table."""
     lead, shown = choose(rows, columns, proven)
-    lead, given = redundant(rows, [c for c in lead if c not in NAMING or "alpha" not in lead])
+    lead = [c for c in lead if not (c in NAMING and "alpha" in lead) and not (short and c in DETAILS)]
+    lead, given = redundant(rows, lead)
     cells = [(_header(c, short), [_latex_cell(c, row, digits) for row in rows]) for c in lead]
     for norm in shown:
         cells += [("error", [_paper_cell(norm, row, digits, latex.number, "--") for row in rows]),
@@ -404,7 +407,8 @@ def caption_of(name, cfg=None, variational=False, slug=False):
         theta = "" if cfg.epsilon.theta == 1 and law.p != 0 else latex.constant(cfg.epsilon.theta)  # 1 h: h
         law = law.tex.format(p=cfg.epsilon.p).strip()
         parts += [rf"$\alpha = {latex.constant(cfg.alpha)}$", rf"$\varepsilon = {theta}{law}$"]
-    parts += [_problem(cfg.problem), r"contact boundary $\Gamma_C$: " + latex.escape(cfg.contact)]
+    parts += [part for part in [_problem(cfg.problem)] if part]
+    parts.append(r"contact boundary $\Gamma_C$: " + latex.escape(cfg.contact))
     if cfg.mesh.kind == "gmsh":
         parts.append(r"gmsh geometry \texttt{" + latex.escape(Path(cfg.mesh.geometry).stem) + "}")
     return f"{text}: " + ", ".join(parts)
@@ -423,6 +427,8 @@ def _problem(problem):
     typeset = [(symbol, _typeset(e)) for symbol, e in given if e is not None]
     if any(len(tex) > 160 for _, tex in typeset):  # unbreakable in a caption line
         return "the solution or data as written in the study's config"
+    if not typeset:  # no load and no Γ_C data (a Hertz contact: the gap alone)
+        return None
     words = "exact solution" if problem.exact is not None else "data"
     return words + " " + ", ".join(f"${symbol} = {tex}$" for symbol, tex in typeset)
 
@@ -494,7 +500,8 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
                                           .rstrip("\n")] + under) + "\n")
         key = latex.label(study.name, table.name if part else "", suffix)
         written.append(path.with_name(path.name + ".tex"))
-        written[-1].write_text(latex_table(table.rows, digits, _table_caption(study, cfg, table), *how, key=key,
+        rows, shown_how = _on_a_page(table, how)
+        written[-1].write_text(latex_table(rows, digits, _table_caption(study, cfg, table), *shown_how, key=key,
                                            short=not table.paper))
     if summary is not None and summary.norms:
         written.append(folder / f"verdict{suffix}.tex")
@@ -503,6 +510,16 @@ def write(study, cfg=None, digits=3, plots=True, folder=None, columns=None, figu
         shown_norms = choose(study.rows, chosen, proven)[1] if chosen != "paper" and study.rows else None
         written += draw(figures, study, cfg, folder, proven, figure, shown_norms, suffix)
     return written
+
+
+def _on_a_page(table, how):
+    """(rows, (columns, proven)) of a table's LaTeX: an ε-sweep's on its finest mesh in L2 and H1 (every mesh
+    and norm, hundreds of rows: its .md and .csv), any other table whole."""
+    if table.name != "sweep" or not table.rows:
+        return table.rows, how
+    finest = max(row["N"] for row in table.rows)
+    rows = [row for row in table.rows if row["N"] == finest]
+    return rows, ([c for c in ("N", "alpha", "epsilon", "L2", "H1") if c in rows[0]], how[1])
 
 
 def _table_caption(study, cfg, table):

@@ -12,17 +12,19 @@ def format_summary(summary):
     lines = []
     if summary.outside_theory:
         lines.append("OUTSIDE THE PAPER'S THEORY (outside_theory: true): no verdict compares with a proven rate")
-    lines += textwrap.wrap(f"verification: rate = slope of log e against log h over the last {summary.fit_levels} "
-                           f"levels; interval: the fit ± 2 standard errors, the successive rates and where they head; "
-                           f"every class needs an interval within ± {summary.tolerance:g}", TERMINAL_WIDTH)
-    lines += [f"  {note}" for note in summary.notes]
-    rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
-    for v in summary.norms:
-        observed = _rate(v.observed) + (f" (log-corrected {_rate(v.log_corrected)})" if v.log_factor else "")
-        proven = "-" if v.proven is None else f"{v.proven:g}" + (" |ln h|" if v.log_factor else "")
-        why = f"{v.reference}: {v.reason}" if v.reference and v.proven is not None else v.reason
-        rows.append((v.norm, observed, interval(v), proven, v.verdict, why))
-    lines += _aligned(rows)
+    if summary.norms:  # a study without error norms (a Hertz scene: its quantities) has no rate verdict
+        lines += textwrap.wrap(f"verification: rate = slope of log e against log h over the last "
+                               f"{summary.fit_levels} levels; interval: the fit ± 2 standard errors, the successive "
+                               f"rates and where they head; every class needs an interval within ± "
+                               f"{summary.tolerance:g}", TERMINAL_WIDTH)
+        lines += [f"  {note}" for note in summary.notes]
+        rows = [("norm", "observed", "interval", "proven", "verdict", "why")]
+        for v in summary.norms:
+            observed = _rate(v.observed) + (f" (log-corrected {_rate(v.log_corrected)})" if v.log_factor else "")
+            proven = "-" if v.proven is None else f"{v.proven:g}" + (" |ln h|" if v.log_factor else "")
+            why = f"{v.reference}: {v.reason}" if v.reference and v.proven is not None else v.reason
+            rows.append((v.norm, observed, interval(v), proven, v.verdict, why))
+        lines += _aligned(rows)
     if summary.quantities:
         lines.append("quantities of interest (three finest levels; Celik et al. 2008, safety factor 1.25):")
         rows = [("quantity", "finest", "order", "extrapolated", "GCI_fine", "error band")]
@@ -40,7 +42,9 @@ def interval(v):
 
 
 def markdown_lines(summary):
-    """The verdicts under a markdown rate table: one line per norm, class and interval."""
+    """The verdicts under a markdown rate table: one line per norm, class and interval (none without norms)."""
+    if not summary.norms:
+        return []
     lines = ["", "| norm | observed | interval | proven | verdict | why |", "|---|---|---|---|---|---|"]
     for v in summary.norms:
         proven = "–" if v.proven is None else f"{v.proven:g}"

@@ -1,6 +1,5 @@
 """Per-level verification measures beyond L2/H1: Γ_C errors and quantities, successive differences, and
 errors against a reference solution for data-only scenes; written as Level.extra columns with rates."""
-import numpy as np
 import ufl
 from mpi4py import MPI
 

@@ -48,17 +48,20 @@ def test_load_bad_input_names_the_key(raw_config):
 @pytest.mark.parametrize("comm", WORLD)
 def test_run_passes_each_level_u_h_and_writes_nothing(raw_config, tmp_path, comm):
     """The callback's u_h is the level's solution: its L2 error, measured again in the callback, is the
-    table's (the same integral: equal to round-off); no file is written without write=True."""
+    table's (the same integral, by the error rule's default degree here and by the degree the data need in
+    the table: observed 3.5e-9 relative apart on N = 4, where another level's u_h would be O(1) off); no file
+    is written without write=True."""
     cfg = load(raw_config, output__dir=str(tmp_path / "results"))
     seen = []
 
-    def on_level(level, u_h):
+    def on_level(level, u_h, scene):
         x = ufl.SpatialCoordinate(u_h.function_space.mesh)
-        seen.append((level.n, measure.errors(u_h, ufl.sin(2 * np.pi * x[0]) * (1 - x[1]) ** 2, level.h)["L2"]))
+        u_exact = ufl.sin(2 * np.pi * x[0]) * (1 - x[1]) ** 2
+        seen.append((level.n, measure.errors(u_h, u_exact, level.h, scene.error_degree)["L2"]))
 
     study = run(cfg, on_level=on_level, comm=comm)
     assert [n for n, _ in seen] == [row["N"] for row in study.rows] == [4, 8]
-    assert [l2 for _, l2 in seen] == pytest.approx([row["L2"] for row in study.rows], rel=1e-14)
+    assert [l2 for _, l2 in seen] == pytest.approx([row["L2"] for row in study.rows], rel=1e-7)
     assert list(study.rows[0])[:12] == ["level", "N", "h", "dofs", "epsilon", "converged", "newton_its", "L2",
                                         "rate_L2", "H1", "rate_H1", "time_s"]
     assert study.summary is not None and not (tmp_path / "results").exists()

@@ -70,6 +70,10 @@ BAD = [
                   "epsilon": None, "limit": {"alpha": [1], "exponent": [1]}},
                  "study_type: total_error measures u_S − u_h: pde: elasticity has no manufactured",
                  id="total-elastic"),
+    pytest.param({"study_type": "total_error", "alpha": None, "epsilon": None,
+                  "limit": {"alpha": [1], "exponent": [1]}},
+                 "study_type: total_error measures u_S − u_h: pde: elasticity has no manufactured",
+                 id="total-elastic-exact"),
     pytest.param({"study_type": "signorini", "problem": {"exact": None, "gap": "x - 1", "normal": [1, 0]},
                   "alpha": None, "epsilon": None}, "problem.normal: study_type signorini bounds u·n on the face's "
                  "own normal [0.0, -1.0]", id="vi-other-normal"),
