@@ -22,10 +22,14 @@ def apply_override(raw, item):
 
 
 def set_path(raw, dotted, value):
-    """raw[a][b][c] = value for dotted = "a.b.c", creating the mappings on the way."""
+    """raw[a][b][c] = value for dotted = "a.b.c", creating the mappings on the way; a mapping that holds the
+    rest as one dotted key (a map's grid: `epsilon.theta: [...]`) gets it replaced there."""
     parts = dotted.split(".")
     node = raw
     for i, part in enumerate(parts[:-1]):
+        if ".".join(parts[i:]) in node:
+            node[".".join(parts[i:])] = value
+            return
         child = node.get(part)
         if child is not None and not isinstance(child, dict):
             raise ConfigError(".".join(parts[:i + 1]), "is not a mapping, cannot set a sub-key")

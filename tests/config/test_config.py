@@ -622,3 +622,11 @@ def test_delta_check_survives_an_overflowing_law():
     """eps = h^-100 overflows a float at h = 1e-6: the δ check skips that point instead of crashing."""
     cfg = load({"epsilon": {"law": "power", "exponent": -100}, "positive_part": "smooth"})
     assert cfg.positive_part.delta.text == config.DEFAULT_DELTA
+
+
+def test_set_replaces_a_map_grid_key_written_dotted():
+    # the guide's example: --set map.grid.epsilon.theta=[1,10] on a grid that writes `epsilon.theta: [...]`
+    text = yaml.safe_dump(merge(BASE, {"study_type": "map",
+                                       "map": {"grid": {"epsilon.theta": [0.5, 1.0], "alpha": [1.5, 2.0]}}}))
+    cfg = config.loads(text, overrides=["map.grid.epsilon.theta=[1,10]"])
+    assert sorted({point.epsilon.theta for point in cfg.map.studies}) == [1.0, 10.0]
