@@ -361,3 +361,25 @@ def describe():
     lines += ["", "### Groups `level_00`, `level_01`, …", "", LEVEL + ".", ""] + table(LEVEL_DATASETS, "dataset")
     lines += ["", "### Group `verification`", "", VERIFICATION + "."]
     return "\n".join(lines) + "\n"
+
+
+def solution_bytes(index, points, values):
+    """solution.h5 of a level's u_h (its dofs' points and values, for --resume), as bytes to write atomically."""
+    import h5py
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as out:
+        out.attrs["level"] = index
+        out.attrs["description"] = "the level's u_h: its dofs' points and values, for --resume"
+        out.create_dataset("points", data=points)
+        out.create_dataset("values", data=values)
+    return buffer.getvalue()
+
+
+def read_solution(path):
+    """(level, points, values) of solution.h5, or None where it cannot be read (then levels are solved again)."""
+    import h5py
+    try:
+        with h5py.File(path, "r") as stored:
+            return int(stored.attrs["level"]), stored["points"][...], stored["values"][...]
+    except (OSError, KeyError, ValueError):
+        return None

@@ -1,6 +1,5 @@
 """Resuming a study: its finished levels read back from study.h5 by their index, when the config is
 unchanged (or only appends levels to the mesh's list) and every level up to the last is there whole."""
-import io
 import json
 import math
 from dataclasses import dataclass
@@ -55,34 +54,15 @@ def keep_solution(cfg, levels, comm):
     parts = comm.gather((V.tabulate_dof_coordinates()[:owned], level.solution.x.array.reshape(-1, bs)[:owned]))
     if comm.rank == 0:
         points, values = (np.concatenate([part[k] for part in parts]) for k in (0, 1))
-        files.replace(cfg.output_dir / SOLUTION, lambda path: path.write_bytes(_solution_bytes(level.index, points,
-                                                                                               values)))
-
-
-def _solution_bytes(index, points, values):
-    import h5py
-    buffer = io.BytesIO()
-    with h5py.File(buffer, "w") as out:
-        out.attrs["level"] = index
-        out.attrs["description"] = "the level's u_h: its dofs' points and values, for --resume"
-        out.create_dataset("points", data=points)
-        out.create_dataset("values", data=values)
-    return buffer.getvalue()
+        data = h5.solution_bytes(level.index, points, values)
+        files.replace(cfg.output_dir / SOLUTION, lambda path: path.write_bytes(data))
 
 
 def read_solution(cfg, index):
     """The Stored u_h of level `index` in solution.h5, or None (no file, another level, unreadable)."""
     path = cfg.output_dir / SOLUTION
-    if not path.exists():
-        return None
-    import h5py
-    try:
-        with h5py.File(path, "r") as stored:
-            if int(stored.attrs["level"]) != index:
-                return None
-            return Stored(index, stored["points"][...], stored["values"][...])
-    except (OSError, KeyError, ValueError):
-        return None  # then the finished levels are solved again
+    found = h5.read_solution(path) if path.exists() else None
+    return Stored(*found) if found is not None and found[0] == index else None
 
 
 def on_rank_zero(comm, find):
