@@ -36,9 +36,9 @@ def dirichlet_condition(V, domain, u_exact):
     return elasticity.dirichlet_condition(V, domain, None)
 
 
-def errors(u_h, u_exact, h):
+def errors(u_h, u_exact, h, degree=None):
     """{'L2', 'H1'} of u − u_h (the study's interface; the physical problem has no u)."""
-    return measure.errors(u_h, u_exact, h)
+    return measure.errors(u_h, u_exact, h, degree)
 
 
 def face(cfg):

@@ -44,16 +44,17 @@ def dirichlet_condition(V, domain, u_exact):
     return compliance.dirichlet_condition(V, domain, u_exact)
 
 
-def errors(u_h, u_exact, h):
+def errors(u_h, u_exact, h, degree=None):
     """{'L2', 'H1'} of u_S − u_h."""
-    return measure.errors(u_h, u_exact, h)
+    return measure.errors(u_h, u_exact, h, degree)
 
 
 def forms(cfg, domain, u_h):
     """F(u_h; v) = ∫ ∇u_h·∇v − ∫ f v and J = dF/du; the contact lives in the bounds, not in F."""
     msh = domain.mesh
     v, du = ufl.TestFunction(u_h.function_space), ufl.TrialFunction(u_h.function_space)
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": QUADRATURE_DEGREE})
+    degree = domain.quadrature[0] if domain.quadrature else QUADRATURE_DEGREE  # as the data need (posed)
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": degree})
     u_exact = exact_solution(cfg, msh)
     f, _ = compliance.data(cfg, msh, None, u_exact, ufl.FacetNormal(msh))  # g = 0: homogeneous contact
     F = ufl.inner(ufl.grad(u_h), ufl.grad(v)) * dx - f * v * dx
