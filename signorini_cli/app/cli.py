@@ -26,7 +26,8 @@ try:  # Ctrl-C while the modules load (MPI starts with commands' imports): one l
     from mpi4py import MPI
 
     from ..config import ConfigError
-    from . import commands, guard, start
+    from ..system.version import version_line
+    from . import commands, guard
     from .commands import EXIT_BAD_INPUT, EXIT_EXPECTATION_NOT_MET, EXIT_NOT_CONVERGED, EXIT_OK  # noqa: F401
 except KeyboardInterrupt:
     print("signorini: interrupted by SIGINT while starting", file=sys.stderr)
@@ -112,13 +113,13 @@ def _add_report_commands(sub):
 
 
 class _Version(argparse.Action):
-    """--version: the package's and dolfinx's versions (start.version_line: dolfinx is not imported)."""
+    """--version: the package's and dolfinx's versions (system.version: dolfinx is not imported)."""
 
     def __init__(self, option_strings, dest, **kwargs):
         super().__init__(option_strings, dest, nargs=0, help="print the versions of signorini and dolfinx")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        print(start.version_line())
+        print(version_line())
         parser.exit()
 
 

@@ -3,7 +3,8 @@ with γ = γ0 h_K (problems/nitsche.py); its section `nitsche: {theta, gamma0}`.
 penalty's keys are refused, and so are data and measures that only the compliance model has."""
 from dataclasses import dataclass
 
-from . import pde_poisson, units
+from . import pde_poisson
+from .study_types import STUDY_TYPES
 from . import validators as check
 from .schema import ConfigError, UnitSection, key, keys_of
 
@@ -40,7 +41,7 @@ def section(raw, path):
 def check_config(cfg, raw):
     """The study solves the problem itself (not its VI), P1, with a Signorini solution or data f alone, no
     ε anywhere; θ ≠ 1 makes the Jacobian non-symmetric, which CG cannot solve: a direct linear solver."""
-    study = units.STUDY_TYPES[cfg.study_type]
+    study = STUDY_TYPES[cfg.study_type]
     if study.VI:
         raise ConfigError("problem.method", f"{NAME} is solved by refinement studies and maps; study_type "
                                             f"{cfg.study_type} solves the Signorini VI and the penalty model")

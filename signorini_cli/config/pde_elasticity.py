@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from . import pde_poisson
 from . import validators as check
 from .schema import COORDINATES, FACES, ConfigError, Problem, UnitSection, key, keys_of
+from .study_types import STUDY_TYPES
 
 NAME = "elasticity"
 DOC = "docs/elasticity.md"  # how the reference and `signorini init` describe it beside its name
@@ -121,9 +122,8 @@ def check_vi(problem, study):
 def _check_normal_of_vi(cfg):
     """The VI bounds u·n = ±u_k on a face x_k = 0 or 1 of the built-in meshes (the study types that solve it
     run on nothing else): problem.normal, if given, must be that face's outward normal."""
-    from . import units  # its registry imports this module
     faces = FACES[cfg.dimension]  # a gmsh or file mesh's group: refused for these study types by the mesh check
-    if not units.STUDY_TYPES[cfg.study_type].VI or cfg.problem.normal is None or cfg.contact not in faces:
+    if not STUDY_TYPES[cfg.study_type].VI or cfg.problem.normal is None or cfg.contact not in faces:
         return
     i = FACES[cfg.dimension].index(cfg.contact)  # the faces x_k = 0, x_k = 1 in the order of the axes k
     own = tuple((1.0 if i % 2 else -1.0) if k == i // 2 else 0.0 for k in range(cfg.dimension))

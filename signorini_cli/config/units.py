@@ -15,13 +15,11 @@ LIMIT_ERROR (it measures u_S − u_h against a manufactured Signorini solution),
 GEOMETRY (it runs on gmsh and .msh meshes), FIELDS (it writes output.fields), DEGREES, UNUSED (top-level keys
 it refuses: key -> hint), LIMIT ((required, optional) keys of its limit block, or None; then also
 parse_limit(raw, path, cfg)), SECTION and check_config(cfg, raw) -> cfg."""
-from . import (method_nitsche, method_penalty, pde_elasticity, pde_poisson, study_map, study_refinement,
-               study_signorini, study_sweep, study_total)
+from . import method_nitsche, method_penalty, pde_elasticity, pde_poisson
+from .study_types import STUDY_TYPES
 
 PDES = {unit.NAME: unit for unit in (pde_poisson, pde_elasticity)}
 METHODS = {unit.NAME: unit for unit in (method_penalty, method_nitsche)}
-STUDY_TYPES = {unit.NAME: unit for unit in (study_refinement, study_signorini, study_sweep, study_total,
-                                            study_map)}
 # the key choosing a unit of each kind, and its units
 KINDS = {"problem.pde": PDES, "problem.method": METHODS, "study_type": STUDY_TYPES}
 

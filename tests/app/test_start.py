@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from signorini_cli.app import start
+from signorini_cli.system import version
 
 
 @pytest.mark.fast
@@ -15,5 +15,5 @@ def test_version_loads_neither_mpi_nor_dolfinx():
              "start.entry(); print(sorted(m for m in ('mpi4py', 'petsc4py', 'dolfinx', 'ufl') if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     import dolfinx
-    assert done.stdout.splitlines() == [f"signorini {start.version_line().split()[1]} (dolfinx {dolfinx.__version__})",
-                                        "[]"]
+    line = f"signorini {version.version_line().split()[1]} (dolfinx {dolfinx.__version__})"
+    assert done.stdout.splitlines() == [line, "[]"]
