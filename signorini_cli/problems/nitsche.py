@@ -47,6 +47,8 @@ class NitscheTerm:
     (1/γ)∫ H(P) (φ_k − γ∂_n φ_k)(φ_j − θγ∂_n φ_j): exact for P1, where ∂_n φ_j is constant on a facet and P
     linear. Rows are the dofs of the cell owning each facet (∂_n v couples them all)."""
 
+    alpha = 1.0  # [P]_+ to the first power: its Jacobian jumps, as the penalty's for α = 1 (no Lipschitz J)
+
     def __init__(self, u_h, domain, theta, gamma0):
         self.u_h, self.theta = u_h, theta
         V = u_h.function_space
