@@ -12,6 +12,7 @@ from mpi4py import MPI
 from .. import config, studies
 from ..config import loader, reading
 from ..meshing import meshes
+from ..problems import profile
 from ..record import results
 from ..report import tables
 from ..studies import rate_map
@@ -63,11 +64,12 @@ def scene_of(cfg, level, u_h):
     ds_c = forms.ds_c if forms is not None else ufl.Measure("ds", domain.mesh, subdomain_data=domain.facet_tags)(
         meshes.CONTACT)
     pressure = None
-    if forms is not None and level.eps > 0:
-        w_h = forms.gap.w_h if forms.gap is not None else u_h
+    if forms is not None and level.eps > 0 and forms.gap is not None:
+        pressure = profile.elastic_pressure(cfg, forms, level.eps)
+    elif forms is not None and level.eps > 0:
         space = fem.FunctionSpace(domain.mesh, ("Lagrange", 1))
         pressure = fem.Function(space, name="pressure")
-        pressure.interpolate(fem.Expression(ufl.max_value(w_h, 0) ** cfg.alpha / level.eps,
+        pressure.interpolate(fem.Expression(ufl.max_value(u_h, 0) ** cfg.alpha / level.eps,
                                             space.element.interpolation_points()))
     return Scene(domain.facet_tags, meshes.CONTACT, meshes.DIRICHLET, ds_c, forms.u_exact if forms is not None
                  else None, pressure, domain.quadrature[1] if domain.quadrature else None)

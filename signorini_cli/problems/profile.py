@@ -17,10 +17,21 @@ def rows(cfg, domain, u_h, forms, eps_value, index):
                       else _scalar(cfg, domain, u_h, forms, eps_value))
     points = np.concatenate(comm.allgather(points))
     values = np.concatenate(comm.allgather(values))
+    _, first = np.unique(points.round(12), axis=0, return_index=True)  # a node seen by two ranks: once
+    points, values = points[first], values[first]
     position = positions(points, values[:, 0], domain)
     order = np.argsort(position, kind="stable")
     names = ("r" if domain.mesh.geometry.dim == 3 else "x", "pressure", "pressure_exact")[:1 + values.shape[1]]
     return [dict(level=index, **dict(zip(names, map(float, (position[k], *values[k]))))) for k in order]
+
+
+def elastic_pressure(cfg, forms, eps_value):
+    """p_h = (1/ε)[u_h·n − g0]_+^α as a P1 function: its Γ_C facets' values averaged at each node, 0 elsewhere
+    (the normal is the facets' own, which a UFL expression cannot interpolate)."""
+    sums, counts = elasticity.on_vertices(forms.gap.term, elasticity.pressure_values(cfg, forms.gap.term, eps_value))
+    np.divide(sums.x.array, counts.x.array, out=sums.x.array, where=counts.x.array > 0)
+    sums.name = "pressure"
+    return sums
 
 
 def _elastic(cfg, forms, eps_value):
@@ -41,13 +52,11 @@ def _elastic(cfg, forms, eps_value):
 
 
 def _scalar(cfg, domain, u_h, forms, eps_value):
-    """The owned Γ_C dofs' points and pressures (dofs, 1 or 2)."""
+    """The Γ_C dofs' points and pressures (dofs, 1 or 2) of this rank's Γ_C facets."""
     V = u_h.function_space
     dofs, points = measure.contact_facet_dofs(V, domain.facet_tags, CONTACT)
     dofs, first = np.unique(dofs.ravel(), return_index=True)
-    x = points.reshape(-1, 3)[first]
-    owned = dofs < V.dofmap.index_map.size_local
-    dofs, x = dofs[owned], x[owned]
+    x = points.reshape(-1, 3)[first]  # ghosts too: a Γ_C node whose facets another rank owns
     columns = [_pressure(u_h.x.array[dofs], cfg.alpha, eps_value)]
     if forms.u_exact is not None:
         variables = dict(zip(("x", "y", "z"), x.T), eps=eps_value)

@@ -194,7 +194,7 @@ class NewtonSolver:
     without one PETSc's own test runs on the options' tolerances (vinewtonrsls, whose residual is
     the reduced one). `monitor(snes, its, fnorm)` is called at every Newton iteration; `phases`
     (timing.Phases) records form compilation and the residual and Jacobian assemblies. With `split`
-    (compliance.Split) the load and the stiffness are assembled once per solve, and each Newton iteration
+    (problems.forms.Split) the load and the stiffness are assembled once per solve, and each Newton iteration
     assembles only the rest (the contact term, and the stiffness times u with one quadrature point).
     `contact` (contact.ContactTerm, Forms.contact) adds the Γ_C terms integrated beside the UFL forms to
     every residual and Jacobian (timed as phase 'contact' within the assemblies)."""

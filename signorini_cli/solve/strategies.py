@@ -48,14 +48,14 @@ class Problem:
     eps: fem.Constant
     eps_target: float
     dim: int
-    split: object = None  # compliance.Split: Newton assembles the load and stiffness once per solve
+    split: object = None  # problems.forms.Split: Newton assembles the load and stiffness once per solve
     bounds: tuple = None
     contact: object = None  # contact.ContactTerm: the Γ_C terms assembled beside the UFL forms
     near_nullspace: object = None  # PETSc.NullSpace for AMG (elasticity's rigid motions)
 
 
 def problem(forms, u_h, bcs, eps, eps_value, dim, bounds=None):
-    """The Problem of compliance.Forms `forms` (the split and the contact term included) at eps_value."""
+    """The Problem of problems.forms.Forms `forms` (the split and the contact term included) at eps_value."""
     return Problem(forms.F, forms.J, u_h, bcs, eps, eps_value, dim, forms.split, bounds, forms.contact,
                    forms.near_nullspace)
 

@@ -133,3 +133,15 @@ def test_run_passes_u_h_of_a_signorini_study(raw_config, tmp_path):
     study = run(load(raw, output__dir=str(tmp_path)), comm=MPI.COMM_SELF,
                 on_level=lambda level, u_h: seen.append((level.n, u_h.function_space.dofmap.index_map.size_global)))
     assert seen == [(4, 25), (8, 81)] and [row["N"] for row in study.rows] == [4, 8]
+
+
+def test_scene_pressure_of_an_elastic_study():
+    # the facets' normal cannot be interpolated: p_h is the nodal (1/ε)[u_h·n − g0]_+^α; on this flat face its
+    # largest value is the penetration's, (1/ε) max[w_h]_+^α, to round-off
+    root = Path(__file__).resolve().parents[2]
+    cfg = load(root / "configs/elasticity/square-alpha2.yaml", mesh__refinements=[4, 8])
+    seen = []
+    run(cfg, on_level=lambda level, u_h, scene: seen.append((level, scene.pressure.x.array.max())))
+    assert len(seen) == 2
+    for level, peak in seen:
+        assert peak == pytest.approx(level.extra["penetration"] ** cfg.alpha / level.eps, rel=1e-12)

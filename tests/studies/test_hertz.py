@@ -62,3 +62,22 @@ def test_hertz_and_profile_two_ranks_equal_one(tmp_path_factory):
         if len(x) != len(y) or not np.allclose(x, y, rtol=1e-9, atol=1e-14):
             failures.append("profile")
     assert not comm.allreduce(failures)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("name, level", [("configs/demo.yaml", "mesh.refinements=[16]"),
+                                         ("configs/gmsh/l-shape-corner.yaml", "mesh.sizes=[0.1]")])
+def test_scalar_profile_two_ranks_equal_one(tmp_path_factory, name, level):
+    """The scalar pressure profile holds each Γ_C node once on 2 ranks, as on one (a node whose Γ_C facets
+    the other rank owns included); 1e-9 relative: two Newton solves, each to its own round-off."""
+    comm = MPI.COMM_WORLD
+    folder = comm.bcast(str(tmp_path_factory.mktemp("profile")) if comm.rank == 0 else None)
+    cfg = config.load(Path(__file__).resolve().parents[2] / name, [f"output.dir={folder}", level])
+    both = studies.run_study(cfg)[0]
+    one = studies.run_study(cfg, comm=MPI.COMM_SELF)[0] if comm.rank == 0 else None
+    failed = False
+    if comm.rank == 0:
+        x = [(r["x"], r["pressure"]) for r in both.profile]
+        y = [(r["x"], r["pressure"]) for r in one.profile]
+        failed = len(x) != len(y) or not np.allclose(x, y, rtol=1e-9, atol=1e-14)
+    assert not comm.allreduce(failed)
