@@ -148,6 +148,10 @@ def measured(levels):
     return rows
 
 
+GC_ERRORS = ("pos_gc", "L2_gc", "energy_err")
+SAME_GC_3D = 1e-8  # ten times the 3-D kinked rule's stated accuracy
+
+
 def legacy_create(comm, dim, n, diagonal="right", ghost_mode=dolfinx.mesh.GhostMode.shared_facet):
     """meshes.build's mesh before grids.py: dolfinx's create_unit_*, serially with one part and no ghosts."""
     def one_part(comm, nparts, tdim, cells, ghost_mode):
@@ -174,7 +178,10 @@ def compare_with_dolfinx_meshes(path, comm, monkeypatch):
         assert mine.keys() == before.keys() and mine
         for name in mine:
             floor = SAME_DIFFERENCE if name.startswith("difference") else 1e-300
-            assert mine[name] == pytest.approx(before[name], rel=SAME, abs=floor), name
+            # 3-D Γ_C errors: the kinked rule on triangles is accurate to ~1e-9 (problems/kinked.py), and two
+            # partitions order a facet's vertices differently
+            rel = SAME_GC_3D if cfg.dimension == 3 and any(gc in name for gc in GC_ERRORS) else SAME
+            assert mine[name] == pytest.approx(before[name], rel=rel, abs=floor), name
 
 
 @pytest.mark.parametrize("path", shipped_built_in_configs())
