@@ -312,20 +312,37 @@ class FolderLock:
         if problem is not None:
             return problem
         try:
-            for path in (*reversed(self.folder.parents), self.folder):
-                try:  # only the folders this run makes itself: another run may make the same ones meanwhile
-                    path.mkdir()
-                    self.made.append(path)
-                except FileExistsError:
-                    pass
-            self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
-            fcntl.flock(self.fd, mode | fcntl.LOCK_NB)
+            self._lock_folder(mode)
             return None
         except OSError as err:
             self.release()
             if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
                 return f"{self.folder} is being written by another signorini run{busy}"
             return f"{err.filename or self.folder}: cannot write there: {err.strerror}"
+
+    def _lock_folder(self, mode, tries=10):
+        """Make the folder with its missing parents (recording only those this run made), open and lock it.
+        Another run may make the same folders meanwhile, or remove an empty one it had made (its probe) before
+        this run's next mkdir, open or lock: then start again from the top."""
+        for attempt in range(tries):
+            try:
+                for path in (*reversed(self.folder.parents), self.folder):
+                    try:
+                        path.mkdir()
+                        self.made.append(path)
+                    except FileExistsError:
+                        pass
+                self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
+                fcntl.flock(self.fd, mode | fcntl.LOCK_NB)
+                if os.path.samestat(os.fstat(self.fd), os.stat(self.folder)):
+                    return
+                raise FileNotFoundError(errno.ENOENT, "removed while being locked", str(self.folder))
+            except FileNotFoundError:
+                if self.fd is not None:
+                    os.close(self.fd)
+                    self.fd = None
+                if attempt == tries - 1:
+                    raise
 
     def release(self):
         if self.fd is not None:

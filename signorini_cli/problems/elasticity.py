@@ -246,7 +246,7 @@ def rigid_motions(V):
         for k, (i, j) in enumerate(rotations):
             b[d + k][:, i], b[d + k][:, j] = -x[:, j], x[:, i]
     la.orthonormalize(basis)
-    return PETSc.NullSpace().create(vectors=basis)
+    return PETSc.NullSpace().create(vectors=basis, comm=V.mesh.comm)  # not PETSc's default, COMM_WORLD
 
 
 # --- fields for ParaView: stress, von Mises, contact pressure ------------------------------------------

@@ -201,6 +201,16 @@ def test_rigid_motions_span_the_stiffness_kernel(tmp_path, dim):
         assert Kz.norm() <= 1e-12 * K.norm()  # round-off: the modes are orthonormal, K's rows sum to zero
 
 
+@pytest.mark.mpi
+def test_rigid_motions_live_on_the_mesh_communicator():
+    """On 2 ranks, a one-rank mesh's near-nullspace is a one-rank object: made on PETSc's default
+    communicator (COMM_WORLD) it was freed on that rank alone, and PETSc's finalize then waited forever."""
+    cfg = config.loads(yaml.safe_dump(BASE))
+    domain = meshes.build(cfg.mesh, cfg.contact, 4, MPI.COMM_SELF)
+    V = fem.VectorFunctionSpace(domain.mesh, ("Lagrange", 1))
+    assert elasticity.rigid_motions(V).getComm().getSize() == 1
+
+
 def test_lame_plane_strain():
     """μ = E/(2(1+ν)), λ = Eν/((1+ν)(1−2ν)): E = 2.6, ν = 0.3 give μ = 1, λ = 1.5."""
     mu, lmbda = elasticity.lame(config.pde_elasticity.Material(E=2.6, nu=0.3))
