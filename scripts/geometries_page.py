@@ -98,9 +98,14 @@ def section(cfg, serial, parallel):
     return out + [""]
 
 
+def _in_repository(path):
+    """A mesh file's path from the repository's root: the page reads the same on every checkout."""
+    return str(Path(path).resolve().relative_to(Path(__file__).resolve().parents[1]))
+
+
 def _mesh_text(cfg):
     m = cfg.mesh
-    source = f"geometry: {m.geometry}" if m.kind == "gmsh" else f"path: {list(m.path)}"
+    source = f"geometry: {m.geometry}" if m.kind == "gmsh" else f"path: {[_in_repository(p) for p in m.path]}"
     levels = f"sizes: {list(m.sizes)}" if m.kind == "gmsh" else ""
     refine = f", refine: uniform, refinements: {list(m.refinements)}" if m.refine == "uniform" else ""
     return f"kind: {m.kind}, {source}" + (f", {levels}" if levels else "") + refine

@@ -40,3 +40,16 @@ def test_default_errors_equal_tight_solve(tmp_path, name):
     # without the polish too: the exact Newton check after the success test takes the iterate to the root
     # (before the check, the unpolished columns moved by up to 4.2e-5: data-push, L2_gc_ref at N = 64)
     assert max(d[5] for d in precision["deviations"](runs["unpolished"][2], runs["tight"][2])) <= 1e-6
+
+
+def test_round_off_entries_count_as_agreeing():
+    """An entry whose two values lie below 1e-12 of the row's largest error entry has no significant digit
+    (the L-shape corner case's pos_gc, where u = 0 on Γ_C: 2.0e-18 tight against 3.1e-34 default); above
+    that floor the plain relative difference stands."""
+    def rows(pos_gc):
+        return {"rates.csv": [{"L2": 1.6e-3, "rate_L2": 2.0, "H1": 3.7e-2, "rate_H1": 1.0, "pos_gc": pos_gc,
+                               "rate_pos_gc": 1.5}]}
+    found = {d[2]: d[5] for d in precision["deviations"](rows(3.1e-34), rows(2.0e-18))}
+    assert found == {"L2": 0.0, "H1": 0.0, "pos_gc": 0.0}
+    found = {d[2]: d[5] for d in precision["deviations"](rows(2e-10), rows(1e-10))}
+    assert found["pos_gc"] == 1.0
