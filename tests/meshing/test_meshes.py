@@ -149,7 +149,9 @@ def measured(levels):
 
 
 GC_ERRORS = ("pos_gc", "L2_gc", "energy_err")
-SAME_GC_3D = 1e-8  # ten times the 3-D kinked rule's stated accuracy
+# the 3-D kinked rule's accuracy on triangles, where two partitions order a facet's vertices differently: ~1e-9
+# for P1, 1.3e-8 measured for P2 (configs/elements/p2-elastic-cube-alpha2.yaml's pos_gc on 2 ranks), so 1e-7
+SAME_GC_3D = 1e-7
 
 
 def legacy_create(comm, dim, n, diagonal="right", ghost_mode=dolfinx.mesh.GhostMode.shared_facet):
