@@ -46,15 +46,15 @@ class Runs:
 
 
 def run(path, out, overrides=()):
-    """Run one study through the command line (in this process) into the Runs `out`; return
+    """Run one study through the command line (in a process of its own) into the Runs `out`; return
     (exit status, rows of its rates.csv)."""
     status, tables = run_tables(path, out, overrides)
     return status, tables["rates"]
 
 
 def run_tables(path, out, overrides=()):
-    """Run one study through the API, its record written as `run` writes it; return (exit status as `run` gives
-    it, {table name: rows}) of every CSV it wrote (rates for refinement studies; sweep, fitted and reference
+    """Run one study as `signorini run` (run_apart); return (its exit status, {table name: rows}) of every CSV
+    it wrote (rates for refinement studies; sweep, fitted and reference
     for an ε-sweep)."""
     cfg = config.load(path, list(overrides) + [f"output.dir={out.root}"])
     status = reused(cfg) if out.reuse else None
