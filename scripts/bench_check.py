@@ -7,8 +7,10 @@ Whole processes are timed as /usr/bin/time does (wall clock; user + system CPU a
 from os.wait4), each the median of several runs taken in turn (A B C A B C ...), so that a slow spell of this
 shared machine falls on every command alike. The processes compile and cache their bytecode as a user's
 installation has it (PYTHONPYCACHEPREFIX under results/bench/), whatever the calling environment says."""
+import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -34,6 +36,9 @@ SHORT_WHOLE_RUNS = ("signorini", "tutorial")
 STARTUP = {"python": [PYTHON, "-c", "pass"], "version": [SIGNORINI, "--version"],
            "check": [SIGNORINI, "check", "configs/demo.yaml"],
            "imports": [PYTHON, "-c", "import signorini_cli.app.commands"]}  # the modules every run loads
+# --resume extending a finished study by one level against a fresh run of all its levels (figures included)
+RESUME_LEVELS = ("[64, 128, 256, 512]", "[64, 128, 256, 512, 1024]")
+RESUME_FOLDERS = {name: RUNS / "resume" / name for name in ("finished", "fresh", "resume")}
 FINEST = ROOT / "bench" / "configs" / "square.yaml"
 FINEST_LEVELS = "[512, 1024]"  # the finest 2-D level after the one it starts from (nested iteration)
 # (key, what, limit, sense): the speed contract, in the order of the page's table
@@ -48,7 +53,9 @@ TARGETS = (("whole_over_tutorial", "whole default run N = 8..512 / the tutorial-
            ("version_over_python", "`signorini --version` / `python -c pass`", 3.0, "<="),
            ("cube_128_two_ranks_s", "3-D 128^3 level on 2 ranks (s)", 40.0, "<="),
            ("speedup", "2-rank speed-up of the finest 2-D level", 1.7, ">="),
-           ("elastic_3d_floor_ratio", "3-D elastic Newton / linear floor at 32^3", 1.5, "<="))
+           ("elastic_3d_floor_ratio", "3-D elastic Newton / linear floor at 32^3", 1.5, "<="),
+           ("resume_over_fresh", "`--resume` extending N = 64..512 by 1024 / a fresh run of N = 64..1024, median of 3",
+            0.7, "<="))
 # how much worse than the last full bench a measured value may be before a target counts as regressed (a
 # target that is met never regresses): this machine's whole-process times vary by ~10 % between spells
 NOISE = 0.15
@@ -96,6 +103,36 @@ def startup(repeats=5):
 def whole_runs(names, repeats):
     """The whole default run and the tutorial-style scripts `names`, `repeats` times in turn."""
     return alternating({name: WHOLE_RUNS[name] for name in names}, repeats)
+
+
+def demo_run(folder, levels, *flags):
+    """`signorini run configs/demo.yaml` on `levels` into `folder`."""
+    return [SIGNORINI, "run", "configs/demo.yaml", "--quiet", *flags, "--output", str(folder), "--set",
+            f"mesh.refinements={levels}"]
+
+
+def resume_runs(repeats=3):
+    """--resume extending the finished demo study on N = 64..512 by N = 1024 against a fresh run on N = 64..1024,
+    `repeats` times in turn (the finished study copied afresh before each resume, untimed): the medians as
+    `alternating` gives them, and each run's level times (time_s of its rates.csv)."""
+    finished, fresh, resumed = RESUME_FOLDERS.values()
+    timed_process(demo_run(finished, RESUME_LEVELS[0], "--force"))
+    found = {"fresh": [], "resume": []}
+    for k in range(repeats):
+        print(f"== fresh and --resume ({k + 1}/{repeats})", flush=True)
+        found["fresh"].append(timed_process(demo_run(fresh, RESUME_LEVELS[1], "--force")))
+        shutil.rmtree(resumed, ignore_errors=True)
+        shutil.copytree(finished, resumed)
+        found["resume"].append(timed_process(demo_run(resumed, RESUME_LEVELS[1], "--resume")))
+    levels = {name: level_times(folder) for name, folder in (("fresh", fresh), ("resume", resumed))}
+    return {name: dict({key: float(np.median([r[key] for r in runs])) for key in runs[0]},
+                       walls=[r["wall_s"] for r in runs], level_s=levels[name]) for name, runs in found.items()}
+
+
+def level_times(folder):
+    """time_s of every level in the study's rates.csv under `folder` (the last run's)."""
+    with open(next(Path(folder).glob("*/rates.csv"))) as f:
+        return [float(row["time_s"]) for row in csv.DictReader(f)]
 
 
 def finest_level():

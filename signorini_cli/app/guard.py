@@ -326,12 +326,7 @@ class FolderLock:
         this run's next mkdir, open or lock: then start again from the top."""
         for attempt in range(tries):
             try:
-                for path in (*reversed(self.folder.parents), self.folder):
-                    try:
-                        path.mkdir()
-                        self.made.append(path)
-                    except FileExistsError:
-                        pass
+                files.make_folders((*reversed(self.folder.parents), self.folder), self.made)
                 self.fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
                 fcntl.flock(self.fd, mode | fcntl.LOCK_NB)
                 if os.path.samestat(os.fstat(self.fd), os.stat(self.folder)):
@@ -348,11 +343,7 @@ class FolderLock:
         if self.fd is not None:
             os.close(self.fd)  # closing the last descriptor drops the flock
             self.fd = None
-        for path in reversed(self.made):
-            try:
-                path.rmdir()  # only an empty folder: a run that wrote nothing leaves nothing
-            except OSError:
-                break
+        files.remove_empty(self.made)  # only empty folders: a run that wrote nothing leaves nothing
         self.made = []
 
     def __enter__(self):

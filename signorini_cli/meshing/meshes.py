@@ -58,6 +58,12 @@ def _build(mesh_cfg, contact, n, comm):
     return domain_of(msh, tags, n)
 
 
+def kuhn(mesh_cfg):
+    """Whether the family's meshes are Kuhn grids of [0, 1]^d (every simplex a chain of unit steps from a
+    grid point): the unit cube, the unit square with diagonal 'right'."""
+    return mesh_cfg.kind == "unit_cube" or (mesh_cfg.kind == "unit_square" and mesh_cfg.diagonal == "right")
+
+
 def tag_boundary(msh, face):
     """Tag the facets on the plane x[axis] = value as CONTACT and every other exterior facet DIRICHLET
     (from the exterior facets' vertices: dolfinx's locate_entities_boundary would also build the

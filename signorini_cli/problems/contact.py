@@ -216,17 +216,9 @@ def _on_segments(u_fn, starts, ends, t):
 
 
 def _zero(u_fn, starts, ends, lo, hi, u_lo, u_hi):
-    """The zero of u in [lo, hi] of each segment, where u_lo > 0 >= u_hi or the reverse: regula falsi
-    with the Illinois modification (superlinear; the bracket always holds the zero)."""
-    for _ in range(ZERO_ITERATIONS):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t = np.where(u_hi != u_lo, (lo * u_hi - hi * u_lo) / (u_hi - u_lo), (lo + hi) / 2)
-        t = np.clip(t, np.minimum(lo, hi), np.maximum(lo, hi))
-        u_t = np.broadcast_to(u_fn(starts + t[:, None] * (ends - starts)), t.shape)
-        low_side = (u_t > 0) == (u_lo > 0)
-        lo, u_lo, u_hi = np.where(low_side, t, lo), np.where(low_side, u_t, u_lo), np.where(low_side, u_hi / 2, u_hi)
-        hi, u_hi, u_lo = np.where(low_side, hi, t), np.where(low_side, u_hi, u_t), np.where(low_side, u_lo, u_lo / 2)
-    return np.where(np.abs(u_lo) <= np.abs(u_hi), lo, hi)
+    """The zero of u in [lo, hi] of each segment, where u_lo > 0 >= u_hi or the reverse (kinked.illinois)."""
+    return kinked.illinois(lambda t: np.broadcast_to(u_fn(starts + t[:, None] * (ends - starts)), t.shape),
+                           lo, hi, u_lo, u_hi, ZERO_ITERATIONS)
 
 
 def _pieces(u_fn, alpha, starts, ends, weights_fn, origin, end, jacobi):

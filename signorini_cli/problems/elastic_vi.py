@@ -75,13 +75,7 @@ def problem(cfg, domain, u_h, bc):
 
 def solve(cfg, domain, u_h, bc, previous=None, monitor=None):
     """Solve the VI for u_h by the configured strategy; (Outcome, Forms)."""
-    vi_problem, forms_ = problem(cfg, domain, u_h, bc)
-    try:
-        outcome = strategies.solve(cfg.solver, vi_problem, previous, monitor)
-    finally:
-        for bound in vi_problem.bounds:
-            bound.destroy()
-    return outcome, forms_
+    return vi.solved(cfg, problem(cfg, domain, u_h, bc), previous, monitor)
 
 
 def contact_dofs(cfg, V, domain):

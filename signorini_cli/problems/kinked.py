@@ -98,23 +98,24 @@ def _bracketed_zeros(cuts, kink):
     change = (k[:, :-1] > 0) != (k[:, 1:] > 0)
     zeros = np.full(change.shape, np.nan)
     rows = np.broadcast_to(np.arange(m)[:, None], change.shape)[change]
-    zeros[change] = _illinois(cuts, kink, rows, grid[:, :-1][change], grid[:, 1:][change],
-                              k[:, :-1][change], k[:, 1:][change])
+    zeros[change] = illinois(lambda t: kink(*cuts.at(rows, t[:, None]))[:, 0], grid[:, :-1][change],
+                             grid[:, 1:][change], k[:, :-1][change], k[:, 1:][change])
     return zeros
 
 
-def _illinois(cuts, kink, rows, lo, hi, k_lo, k_hi):
-    """The zero of kink in [lo, hi] of the cuts `rows`, where k_lo > 0 >= k_hi or the reverse: regula falsi
-    with the Illinois modification (superlinear; the bracket always holds the zero)."""
-    for _ in range(ZERO_ITERATIONS):
+def illinois(f, lo, hi, f_lo, f_hi, iterations=ZERO_ITERATIONS):
+    """The zero of f in each bracket [lo, hi] (B,), where f_lo > 0 >= f_hi or the reverse (f(t) -> (B,), the
+    values at one parameter per bracket): regula falsi with the Illinois modification (superlinear; the
+    bracket always holds the zero)."""
+    for _ in range(iterations):
         with np.errstate(invalid="ignore", divide="ignore"):
-            t = np.where(k_hi != k_lo, (lo * k_hi - hi * k_lo) / (k_hi - k_lo), (lo + hi) / 2)
+            t = np.where(f_hi != f_lo, (lo * f_hi - hi * f_lo) / (f_hi - f_lo), (lo + hi) / 2)
         t = np.clip(t, np.minimum(lo, hi), np.maximum(lo, hi))
-        k_t = kink(*cuts.at(rows, t[:, None]))[:, 0]
-        same = (k_t > 0) == (k_lo > 0)
-        lo, k_lo, k_hi = np.where(same, t, lo), np.where(same, k_t, k_lo), np.where(same, k_hi / 2, k_hi)
-        hi, k_hi, k_lo = np.where(same, hi, t), np.where(same, k_hi, k_t), np.where(same, k_lo, k_lo / 2)
-    return np.where(np.abs(k_lo) <= np.abs(k_hi), lo, hi)
+        f_t = f(t)
+        same = (f_t > 0) == (f_lo > 0)
+        lo, f_lo, f_hi = np.where(same, t, lo), np.where(same, f_t, f_lo), np.where(same, f_hi / 2, f_hi)
+        hi, f_hi, f_lo = np.where(same, hi, t), np.where(same, f_hi, f_t), np.where(same, f_lo, f_lo / 2)
+    return np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
 
 
 LINEAR_B = 1e-12  # |c5| below this share of a kink's values: linear along the lines (round-off of a P1 trace)

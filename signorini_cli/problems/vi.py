@@ -72,7 +72,13 @@ def problem(cfg, domain, u_h, bc):
 def solve(cfg, domain, u_h, bc, previous=None, monitor=None):
     """Solve the VI for u_h by the configured strategy, `previous` being the last level's solution (the
     nested guess) or None; return (Outcome, Forms)."""
-    vi_problem, forms_ = problem(cfg, domain, u_h, bc)
+    return solved(cfg, problem(cfg, domain, u_h, bc), previous, monitor)
+
+
+def solved(cfg, posed, previous=None, monitor=None):
+    """Solve a VI posed as (Problem, Forms) by the configured strategy, its bound vectors destroyed after;
+    (Outcome, Forms)."""
+    vi_problem, forms_ = posed
     try:
         outcome = strategies.solve(cfg.solver, vi_problem, previous, monitor)
     finally:

@@ -9,7 +9,10 @@ boundary) are an error, or with `extend` take the extension of the closest cell'
 few points go to every rank.
 A P1 source on the built-in Kuhn grid of the unit square ('right' diagonal) or cube takes a fast path:
 each rank receives the source's vertex values on the grid layers its target points need, and the P1
-interpolant is evaluated in closed form (the same values, no search)."""
+interpolant is evaluated in closed form (the same values, no search). The same path moves GridValues, a
+P1 function on that grid given by its vertex values alone (a resumed study's stored u_h, its mesh not built)."""
+from dataclasses import dataclass
+
 import numpy as np
 from mpi4py import MPI
 
@@ -19,12 +22,40 @@ CHUNK = 2**16  # target points interpolated at once on the Kuhn path (152 MiB of
 BOX_TOL = 1e-8  # relative padding of a rank's bounding box: its points on the box's faces count as inside
 
 
+@dataclass(frozen=True)
+class GridValues:
+    """A P1 function on the Kuhn grid of [0, 1]^d with n cells per side, as the values (m, bs) at the grid
+    points (m, 3) this rank holds (any split of the points between ranks)."""
+    n: int
+    points: np.ndarray
+    values: np.ndarray
+
+    def onto(self, V_target):
+        """This function at V_target's dofs (P1 of the same block size on a mesh inside [0, 1]^d)."""
+        bs = V_target.dofmap.index_map_bs
+        if bs == 1:
+            return self.component(0, V_target)
+        u_target = fem.Function(V_target)
+        for i in range(bs):
+            V_i, dofs = V_target.sub(i).collapse()
+            u_target.x.array[dofs] = self.component(i, V_i).x.array
+        return u_target
+
+    def component(self, i, V_target):
+        moved = grid_transfer(self.points, self.values[:, i], self.n, V_target)
+        if moved is None:
+            raise ValueError("transfer: target points lie outside [0, 1]^d, the grid's domain")
+        return moved
+
+
 def transfer(u_source, V_target, extend=False):
-    """u_source (P1 or P2 on one mesh) as a Function on V_target (the same element on another mesh of the
-    same domain).
+    """u_source (P1 or P2 on one mesh, or GridValues) as a Function on V_target (the same element on
+    another mesh of the same domain).
     A target point outside the source mesh is an error, or with `extend` (curved boundaries of a
     non-nested family: an initial guess, not a measurement) takes the extension of u_source's polynomial
     on its closest cell."""
+    if isinstance(u_source, GridValues):
+        return u_source.onto(V_target)
     if V_target.dofmap.index_map_bs > 1:
         return by_component(u_source, V_target, extend)
     n = kuhn_grid(u_source.function_space.mesh) if u_source.function_space.ufl_element().degree() == 1 else 0
@@ -181,17 +212,23 @@ def kuhn_grid(msh):
 
 def kuhn_transfer(u_source, n, V_target):
     """u_source (P1 on the Kuhn grid with n cells per side) at V_target's dofs, owned and ghost; None
-    when a target dof lies outside [0, 1]^d, the grid's domain (on any rank). Each rank receives the
-    source's grid values on the layers (last axis) its targets need, from the ranks that own them."""
+    when a target dof lies outside [0, 1]^d, the grid's domain (on any rank)."""
+    V = u_source.function_space
+    owned = V.dofmap.index_map.size_local
+    return grid_transfer(V.tabulate_dof_coordinates()[:owned], u_source.x.array[:owned], n, V_target)
+
+
+def grid_transfer(points, values, n, V_target):
+    """The P1 function on the Kuhn grid with n cells per side whose values at the grid points (m, 3) held by
+    this rank are `values` (m,), at V_target's dofs; None when a target dof lies outside [0, 1]^d (on any
+    rank). Each rank receives the grid values on the layers (last axis) its targets need, from the ranks
+    that hold them."""
     comm, tdim = V_target.mesh.comm, V_target.mesh.topology.dim
     targets = V_target.tabulate_dof_coordinates()[:, :tdim]
     if not comm.allreduce(bool(np.all((targets > -1e-12) & (targets < 1 + 1e-12))), op=MPI.LAND):
         return None
-    V = u_source.function_space
-    owned = V.dofmap.index_map.size_local
-    points = np.rint(V.tabulate_dof_coordinates()[:owned, :tdim] * n).astype(np.int64)
+    points = np.rint(points[:, :tdim] * n).astype(np.int64)
     index, layer = points @ (n + 1) ** np.arange(tdim), (n + 1) ** (tdim - 1)
-    values = u_source.x.array[:owned]
     wanted = comm.allgather(needed_layers(targets, n))
     sent = [(index[m], values[m]) for m in ((points[:, -1] >= lo) & (points[:, -1] <= hi) for lo, hi in wanted)]
     lo, hi = wanted[comm.rank]

@@ -10,7 +10,7 @@ from dolfinx import fem
 from ..meshing import meshes
 from ..problems import registry
 from ..problems.registry import problem_of
-from ..solve import solver, strategies
+from ..solve import solver, strategies, transfer
 from ..system import timing
 from ..analysis import verdict
 from . import fields, stability, verification
@@ -55,7 +55,7 @@ def resume_verifier(cfg, done, comm, verifier):
     if not converged or len(done) >= len(cfg.mesh.levels) or not (nested or "diff" in verifier.measures):
         return None
     if converged[-1].solution is not None:
-        u_h = stored_function(cfg, converged[-1].solution, comm)
+        u_h = stored_function(cfg, converged[-1].solution, comm, on_mesh="diff" in verifier.measures)
         converged[-1].solution = None  # the record's copy: u_h holds it now
         if u_h is not None:
             verifier.previous = u_h if "diff" in verifier.measures else None
@@ -69,17 +69,28 @@ def resume_verifier(cfg, done, comm, verifier):
     return previous
 
 
-def stored_function(cfg, stored, comm):
+def stored_function(cfg, stored, comm, on_mesh=True):
     """The stored u_h (points, values) on its level's mesh built again, each dof matched to the stored
     point it equals bit for bit (the family builds the same points on any partition); None (on every
-    rank) when a dof has none (the mesh is not the one it was stored on)."""
-    domain = meshes.build(cfg.mesh, cfg.contact, cfg.mesh.levels[stored.index], comm)
+    rank) when a dof has none (the mesh is not the one it was stored on). Without `on_mesh`, a P1 u_h on
+    a Kuhn grid is handed on as its grid values (transfer.GridValues: the same initial guess, no mesh)."""
+    n = cfg.mesh.levels[stored.index]
+    if not on_mesh and meshes.kuhn(cfg.mesh) and on_grid(stored.points, n, cfg.dimension):
+        held = len(stored.points) if comm.rank == 0 else 0  # every rank has all of it: rank 0 hands it on
+        return transfer.GridValues(n, stored.points[:held], stored.values[:held])
+    domain = meshes.build(cfg.mesh, cfg.contact, n, comm)
     u_h = fem.Function(problem_of(cfg).space(cfg, domain.mesh), name="u_h")
     match = matching_points(stored.points, u_h.function_space.tabulate_dof_coordinates())
     if not comm.allreduce(match is not None, op=MPI.LAND):
         return None
     u_h.x.array[:] = stored.values[match].ravel()
     return u_h
+
+
+def on_grid(points, n, dim):
+    """Whether `points` (m, 3) are the (n + 1)^dim points of the grid with n cells per side (a P1 u_h's dofs)."""
+    scaled = points[:, :dim] * n
+    return len(points) == (n + 1)**dim and np.allclose(scaled, np.rint(scaled), rtol=0, atol=1e-8)
 
 
 def matching_points(points, x):

@@ -85,13 +85,7 @@ def _probe(folder, missing):
     'vanished' when a folder was removed by another run meanwhile."""
     made = []
     try:
-        for path in missing:
-            try:
-                path.mkdir()
-                made.append(path)
-            except FileExistsError:
-                if not path.is_dir():
-                    raise
+        make_folders(missing, made)
         with tempfile.TemporaryFile(dir=folder):
             pass
     except FileNotFoundError:
@@ -99,12 +93,32 @@ def _probe(folder, missing):
     except OSError as err:
         return f"{err.filename or folder}: cannot write there: {err.strerror}"
     finally:
-        for path in reversed(made):
-            try:
-                path.rmdir()
-            except OSError:  # another run wrote into it, or removed it
-                break
+        remove_empty(made)
     return None
+
+
+def make_folders(paths, made):
+    """Make each of `paths` (outermost first) that is missing, adding those made to the list `made` (once
+    each) as they are made; a path that is a file raises FileExistsError, a parent removed meanwhile
+    FileNotFoundError."""
+    for path in paths:
+        try:
+            path.mkdir()
+            if path not in made:
+                made.append(path)
+        except FileExistsError:
+            if not path.is_dir():
+                raise
+
+
+def remove_empty(made):
+    """Remove the folders `made` (outermost first) from the innermost out, while they are empty: one that
+    another run wrote into, or removed, stops it."""
+    for path in reversed(made):
+        try:
+            path.rmdir()
+        except OSError:
+            break
 
 
 def _missing(folder, existing):

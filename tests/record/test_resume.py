@@ -10,6 +10,7 @@ from mpi4py import MPI
 
 from signorini_cli import config, studies
 from signorini_cli.app import cli
+from signorini_cli.meshing import meshes
 from signorini_cli.record import results, resume
 from signorini_cli.studies import refinement
 from conftest import BASE, merge
@@ -61,11 +62,15 @@ def test_resume_extends_a_finished_study(tmp_path, capsys, monkeypatch, measures
     before = rows(tmp_path)
     with h5py.File(Path(tmp_path) / "out" / "t" / "study.h5") as h5:
         kept = [h5[f"level_{k:02d}"].attrs["time_s"] for k in (0, 1)]
-    solved, solve_level = [], refinement.solve_level
+    solved, solve_level, built, build = [], refinement.solve_level, [], meshes.build
     monkeypatch.setattr(refinement, "solve_level", lambda cfg, index, *rest, **kw: solved.append(index) or
                         solve_level(cfg, index, *rest, **kw))
+    monkeypatch.setattr(meshes, "build", lambda mesh_cfg, contact, n, *rest: built.append(n) or
+                        build(mesh_cfg, contact, n, *rest))
     assert cli.main(["run", path, "--resume", "--quiet", "--set", "mesh.refinements=[4, 8, 16]"]) == cli.EXIT_OK
     assert solved == [2]
+    # the stored u_h goes on as its grid values; the successive difference needs it on its mesh (N = 8)
+    assert 16 in built and (8 in built) == bool(measures)
     monkeypatch.undo()
     extended = rows(tmp_path)
     with h5py.File(Path(tmp_path) / "out" / "t" / "study.h5") as h5:

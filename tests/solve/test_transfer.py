@@ -6,7 +6,8 @@ from mpi4py import MPI
 
 from dolfinx import fem, mesh
 from signorini_cli.meshing import grids
-from signorini_cli.solve.transfer import evaluate, evaluate_routed, kuhn_grid, kuhn_transfer, needed_layers, transfer
+from signorini_cli.solve.transfer import (GridValues, evaluate, evaluate_routed, kuhn_grid, kuhn_transfer, needed_layers,
+                                          transfer)
 
 MESHES = [
     pytest.param(lambda comm, n: mesh.create_unit_square(comm, n, n), id="2d"),
@@ -106,6 +107,33 @@ def check_kuhn_fast_path(comm):
         assert np.all(count >= 1)
         # round-off of two evaluations of one affine function per cell
         assert np.abs(fast.x.array[:owned] - searched[start:start + owned]).max() < 1e-13
+
+
+def check_grid_values(comm):
+    """A P1 function given by its grid values alone, all of them on rank 0 (a resumed study's stored u_h),
+    moves as the function on its mesh does: the same numbers, scalar and vector."""
+    for dim, coarse_n, fine_n, space in ((2, 4, 8, fem.FunctionSpace), (3, 2, 4, fem.VectorFunctionSpace)):
+        V = space(grids.create(comm, dim, coarse_n), ("Lagrange", 1))
+        u = fem.Function(V)
+        u.interpolate(lambda x: np.vstack([np.sin(3 * x[0] + k) * np.exp(x[1]) + x[2] ** 2
+                                           for k in range(V.dofmap.index_map_bs)]))
+        owned, bs = V.dofmap.index_map.size_local, V.dofmap.index_map_bs
+        points = np.vstack(comm.allgather(V.tabulate_dof_coordinates()[:owned]))
+        values = np.vstack(comm.allgather(u.x.array.reshape(-1, bs)[:owned]))
+        held = len(points) if comm.rank == 0 else 0
+        V_fine = space(grids.create(comm, dim, fine_n), ("Lagrange", 1))
+        moved = transfer(GridValues(coarse_n, points[:held], values[:held]), V_fine)
+        assert np.array_equal(moved.x.array, transfer(u, V_fine).x.array)
+
+
+def test_grid_values_serial():
+    check_grid_values(MPI.COMM_WORLD)
+
+
+@pytest.mark.mpi
+def test_grid_values_two_ranks():
+    assert MPI.COMM_WORLD.size == 2
+    check_grid_values(MPI.COMM_WORLD)
 
 
 def test_kuhn_fast_path_serial():
