@@ -10,6 +10,7 @@ import numpy as np
 STEP = 1 / 8
 RANGE = 3.15
 SAMPLES = 8  # sub-intervals per cut searched for sign changes of a kink function that is no polynomial
+CHUNK = 2048  # pieces integrated at once (their nodes' points and values: a few MB)
 ZERO_ITERATIONS = 60  # Illinois steps locating such a zero in a sub-interval where it changes sign
 
 
@@ -30,12 +31,13 @@ class Cuts:
     (M, 3), each cut belonging to the facet `facet` (M,)."""
 
     def __init__(self, facet, lam0, lam1, x0, x1):
-        self.facet, self.lam0, self.lam1, self.x0, self.x1 = facet, lam0, lam1, x0, x1
+        self.facet, self.lam0, self.x0 = facet, lam0, x0
+        self.dlam, self.dx = lam1 - lam0, x1 - x0  # once: a zero search asks for a few rows many times
 
     def at(self, rows, t):
         """(facets, lam, x) at the parameters t (P, q) of the cuts `rows` (P,)."""
-        lam = self.lam0[rows, None] + t[..., None] * (self.lam1 - self.lam0)[rows, None]
-        x = self.x0[rows, None] + t[..., None] * (self.x1 - self.x0)[rows, None]
+        lam = self.lam0[rows, None] + t[..., None] * self.dlam[rows, None]
+        x = self.x0[rows, None] + t[..., None] * self.dx[rows, None]
         return self.facet[rows], lam, x
 
 
@@ -45,11 +47,16 @@ def integrate(cuts, integrand, kinks):
     polynomial of degree <= 2 along the cut has its zeros in closed form, any other is bracketed on
     SAMPLES sub-intervals (two zeros closer than one sub-interval may go unseen: their integrand is as
     small as the function between them)."""
-    rows, t, width = _pieces(_breaks([cuts], kinks))
-    values = integrand(*cuts.at(rows, t))
-    found = np.einsum("pq...,q,p->p...", values, WEIGHTS, width)
-    total = np.zeros((len(cuts.facet),) + found.shape[1:])
-    np.add.at(total, rows, found)
+    rows, lo, width = _pieces(_breaks([cuts], kinks))
+    total = None
+    for start in range(0, max(len(rows), 1), CHUNK):  # in chunks: the temporaries stay in cache
+        piece = slice(start, start + CHUNK)
+        t = lo[piece, None] + width[piece, None] * NODES
+        values = integrand(*cuts.at(rows[piece], t))
+        found = np.einsum("pq...,q,p->p...", values, WEIGHTS, width[piece])
+        if total is None:
+            total = np.zeros((len(cuts.facet),) + found.shape[1:])
+        np.add.at(total, rows[piece], found)
     return total
 
 
@@ -65,13 +72,13 @@ def _breaks(cuts_list, kinks):
 
 
 def _pieces(breaks):
-    """(rows, t, width): the pieces of positive width between successive breaks, their tanh-sinh nodes
-    t (P, q) and widths (P,)."""
+    """(rows, lo, width): the pieces of positive width between successive breaks, their starts and widths
+    (P,); their tanh-sinh nodes are lo + width * NODES."""
     lo, hi = breaks[:, :-1], breaks[:, 1:]
     piece = hi > lo  # False for nan
     rows = np.broadcast_to(np.arange(len(breaks))[:, None], lo.shape)[piece]
     lo, hi = lo[piece], hi[piece]
-    return rows, lo[:, None] + (hi - lo)[:, None] * NODES, hi - lo
+    return rows, lo, hi - lo
 
 
 def _quadratic_zeros(cuts, kink):
@@ -170,7 +177,8 @@ def on_facets(points, integrand, kinks):
     edges = [Cuts(facet, eye[:, 0], eye[:, 1], points[:, 0], points[:, 1]),
              Cuts(facet, eye[:, 2], eye[:, 1], points[:, 2], points[:, 1])]
     breaks = [_breaks(edges, kinks)] + [_tangents(points, kink) for kink, polynomial in kinks if polynomial]
-    rows, a, width = _pieces(np.sort(np.concatenate(breaks, axis=1), axis=1))  # a (P, q): the lines' positions
+    rows, lo, width = _pieces(np.sort(np.concatenate(breaks, axis=1), axis=1))
+    a = lo[:, None] + width[:, None] * NODES  # (P, q): the lines' positions
     line_facet, a = np.repeat(rows, a.shape[1]), a.ravel()
     zero = np.zeros_like(a)
     e1, e2 = points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]
