@@ -237,8 +237,11 @@ def test_sigterm_while_gmsh_meshes_ends_it(tmp_path):
 @pytest.mark.parametrize("delay", [0.08, 0.15, 0.3])
 def test_ctrl_c_while_starting_no_traceback(tmp_path, delay):
     """SIGINT in the first moments (modules loading, MPI starting): one line or none, exit 130."""
+    # started as from a terminal: a suite launched in the background (nohup, `&`) ignores SIGINT, and the
+    # child would inherit that until the run installs its own handler
     proc = subprocess.Popen([SIGNORINI, "run", write_config(tmp_path), "--output", str(tmp_path / "out")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     time.sleep(delay)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
