@@ -89,6 +89,11 @@ def alternating(commands, repeats):
         for name, command in commands.items():
             print(f"== {name} ({k + 1}/{repeats}): {' '.join(command)}", flush=True)
             found[name].append(timed_process(command))
+    return medians(found)
+
+
+def medians(found):
+    """Per name of `found` ({name: [timed_process results]}) the median of each measure and the walls of every run."""
     return {name: dict({key: float(np.median([r[key] for r in runs])) for key in runs[0]},
                        walls=[r["wall_s"] for r in runs]) for name, runs in found.items()}
 
@@ -124,9 +129,10 @@ def resume_runs(repeats=3):
         shutil.rmtree(resumed, ignore_errors=True)
         shutil.copytree(finished, resumed)
         found["resume"].append(timed_process(demo_run(resumed, RESUME_LEVELS[1], "--resume")))
-    levels = {name: level_times(folder) for name, folder in (("fresh", fresh), ("resume", resumed))}
-    return {name: dict({key: float(np.median([r[key] for r in runs])) for key in runs[0]},
-                       walls=[r["wall_s"] for r in runs], level_s=levels[name]) for name, runs in found.items()}
+    summary = medians(found)
+    for name, folder in (("fresh", fresh), ("resume", resumed)):
+        summary[name]["level_s"] = level_times(folder)
+    return summary
 
 
 def level_times(folder):
