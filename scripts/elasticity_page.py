@@ -132,13 +132,14 @@ def hertz_section(folders):
             f"`configs/elasticity/hertz.yaml` ({cfg.description}; exit status {status}). The half-disk of radius "
             f"R = 1 (E = {cfg.material.E:g}, ν = {cfg.material.nu:g}, plane strain) is held at u = 0 on its diameter; "
             "the rigid plane rises by δ = 0.02 into it (gap g0 = y + 1 − δ along n = (0, −1)). problem.hertz_radius "
-            "puts Hertz's quantities in the study's own table: a_h and p_h (the largest nodal pressure λ_i/∫φ_i) "
+            "puts Hertz's quantities in the study's own table: a_h and p_h (the central pressure: the pressure averaged "
+            "with the weight (1 − (2r/a)²)_+², over Hertz's profile's same mean; docs/guide/elasticity.md) "
             "against a = 2√(R F_h/(π E*)) and p0 = 2F_h/(π a) of the measured force F_h = (1/ε)∫[w_h]_+^α, "
             "E* = E/(1 − ν²), and F_h against Hertz's force π E* a_h²/(4R) of the measured half-width. Its "
             f"pressure profile, one curve per level with Hertz's: `{(folder / 'pressure.png').relative_to(ROOT)}`.",
             "", f"### h → 0 at ε = {cfg.epsilon.theta:g} (the study's own levels)", ""] + hertz_table(rows) + \
            ["", f"The half-width error {falls(rows, 'half_width_err')}, the force error "
-                f"{falls(rows, 'force_err')}, the peak-pressure error {falls(rows, 'peak_pressure_err')}. "
+                f"{falls(rows, 'force_err')}, the central-pressure error {falls(rows, 'peak_pressure_err')}. "
                 "Hertz's formulas hold for a half-space (a ≪ R; here a/R ≈ "
                 f"{number(rows[-1]['half_width_hertz']):.2f}): the errors are this model error and the "
                 "discretisation's together.",
@@ -158,7 +159,7 @@ def hertz_3d(folders):
             "a = (3 F_h R/(4E*))^{1/3}, p0 = 3F_h/(2π a²), F(a_h) = 4E* a_h³/(3R); a_h the contact radius. "
             f"Radial pressure profile: `{(folder / 'pressure.png').relative_to(ROOT)}`.", ""] + hertz_table(rows) + \
            ["", f"The half-width error {falls(rows, 'half_width_err')}, the force error {falls(rows, 'force_err')}, "
-                f"the peak-pressure error {falls(rows, 'peak_pressure_err')}."]
+                f"the central-pressure error {falls(rows, 'peak_pressure_err')}."]
 
 
 # --- the Signorini limit and fields -------------------------------------------------------------------

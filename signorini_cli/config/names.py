@@ -38,7 +38,7 @@ COLUMNS = {
     "half_width": Name("a_h", "$a_h$", "the contact half-width"),
     "half_width_hertz": Name("a(F_h)", "$a(F_h)$", "Hertz's half-width under the force $F_h$"),
     "half_width_err": Name("a err", r"$|a_h-a|/a$", "the half-width's relative error"),
-    "peak_pressure": Name("p_h", "$p_h$", "the peak contact pressure"),
+    "peak_pressure": Name("p_h", "$p_h$", "the central contact pressure, Hertz's $p_0$ as measured"),
     "peak_pressure_hertz": Name("p0(F_h)", "$p_0(F_h)$", "Hertz's peak pressure under the force $F_h$"),
     "peak_pressure_err": Name("p err", r"$|p_h-p_0|/p_0$", "the peak pressure's relative error"),
     "force_hertz": Name("F(a_h)", "$F(a_h)$", "Hertz's force for the half-width $a_h$"),

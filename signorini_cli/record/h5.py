@@ -63,7 +63,8 @@ COLUMNS = {
     "half_width": ("length", "the contact half-width: largest distance of the contact set's edge from its centre"),
     "half_width_hertz": ("length", "Hertz's half-width under the measured contact force"),
     "half_width_err": ("1", "|half_width - half_width_hertz| / half_width_hertz"),
-    "peak_pressure": ("1", "the largest nodal pressure λ_i/∫φ_i on Γ_C, λ_i = (1/ε)∫[u_h·n - g0]_+^α φ_i"),
+    "peak_pressure": ("1", "the central pressure: (1/ε)[u_h·n - g0]_+^α averaged with the weight (1 - (2r/a)²)_+² "
+                      "over the middle of the contact zone, over Hertz's profile's same mean (= p0 for Hertz)"),
     "peak_pressure_hertz": ("1", "Hertz's peak pressure under the measured contact force"),
     "peak_pressure_err": ("1", "|peak_pressure - peak_pressure_hertz| / peak_pressure_hertz"),
     "force_hertz": ("1", "Hertz's force for the measured half-width"),

@@ -17,9 +17,9 @@ E_STAR = 1.0 / (1 - 0.3**2)  # E = 1, ν = 0.3, R = 1
 
 
 def test_hertz_study_reports_its_quantities(tmp_path, capsys):
-    """Sizes 0.1, 0.05 of the half-disk: a_h error 0.178 and 0.172, p_h error 6.7e-3 and 7.2e-3 (measured; the
-    finer levels of docs/elasticity.md take them lower); Hertz's columns are the closed forms of the row's own
-    measured F_h and a_h to round-off."""
+    """Sizes 0.1, 0.05 of the half-disk: a_h error 0.178 and 0.172, central pressure p_h error 1.17e-2 and 9.9e-3
+    (measured; the finer levels of docs/elasticity.md take them lower); Hertz's columns are the closed forms of
+    the row's own measured F_h and a_h to round-off."""
     assert cli.main(["run", str(HERTZ), "--set", "mesh.sizes=[0.1, 0.05]", "--output", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "a_h" in out and "p0(F_h)" in out and "F err" in out
@@ -35,8 +35,9 @@ def test_hertz_study_reports_its_quantities(tmp_path, capsys):
         assert math.isclose(float(row["peak_pressure_hertz"]), 2 * F / (math.pi * a), rel_tol=1e-12)
         assert math.isclose(float(row["force_hertz"]), math.pi * E_STAR * a_h**2 / 4, rel_tol=1e-12)
         assert math.isclose(float(row["half_width_err"]), abs(a_h - a) / a, rel_tol=1e-12)
-        assert float(row["half_width_err"]) < 0.2 and float(row["peak_pressure_err"]) < 0.01
+        assert float(row["half_width_err"]) < 0.2 and float(row["peak_pressure_err"]) < 0.015
         assert h5_row["half_width"] == float(row["half_width"]) and h5_row["force_err"] == float(row["force_err"])
+    assert float(rows[1]["peak_pressure_err"]) < float(rows[0]["peak_pressure_err"])
     markdown = (folder / "rates.md").read_text()
     assert "| a_h |" in markdown and "| norm |" not in markdown
     assert r"$a_h$" in (folder / "rates.tex").read_text()
