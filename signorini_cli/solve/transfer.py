@@ -32,14 +32,9 @@ class GridValues:
 
     def onto(self, V_target):
         """This function at V_target's dofs (P1 of the same block size on a mesh inside [0, 1]^d)."""
-        bs = V_target.dofmap.index_map_bs
-        if bs == 1:
+        if V_target.dofmap.index_map_bs == 1:
             return self.component(0, V_target)
-        u_target = fem.Function(V_target)
-        for i in range(bs):
-            V_i, dofs = V_target.sub(i).collapse()
-            u_target.x.array[dofs] = self.component(i, V_i).x.array
-        return u_target
+        return by_component(V_target, self.component)
 
     def component(self, i, V_target):
         moved = grid_transfer(self.points, self.values[:, i], self.n, V_target)
@@ -57,7 +52,7 @@ def transfer(u_source, V_target, extend=False):
     if isinstance(u_source, GridValues):
         return u_source.onto(V_target)
     if V_target.dofmap.index_map_bs > 1:
-        return by_component(u_source, V_target, extend)
+        return by_component(V_target, lambda i, V_i: transfer(u_source.sub(i).collapse(), V_i, extend))
     n = kuhn_grid(u_source.function_space.mesh) if u_source.function_space.ufl_element().degree() == 1 else 0
     moved = kuhn_transfer(u_source, n, V_target) if n else None
     if moved is not None:
@@ -76,12 +71,13 @@ def transfer(u_source, V_target, extend=False):
     return u_target
 
 
-def by_component(u_source, V_target, extend):
-    """A vector P1 function moved one component at a time (each one a scalar P1 function)."""
+def by_component(V_target, moved):
+    """A vector P1 function on V_target made one component at a time: moved(i, V_i), its component i as a
+    Function on the collapsed scalar space V_i."""
     u_target = fem.Function(V_target)
     for i in range(V_target.dofmap.index_map_bs):
         V_i, dofs = V_target.sub(i).collapse()
-        u_target.x.array[dofs] = transfer(u_source.sub(i).collapse(), V_i, extend).x.array
+        u_target.x.array[dofs] = moved(i, V_i).x.array
     return u_target
 
 
