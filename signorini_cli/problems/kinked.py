@@ -168,7 +168,7 @@ def _tangents(points, kink, polynomial):
         a[found[moved]] = np.take_along_axis(a_near, closest, axis=1)[moved, 0]
         b[found[moved]] = np.take_along_axis(b_near, closest, axis=1)[moved, 0]
     inside = (a > 0) & (a < 1) & (b >= 0) & (b <= 1 - a)
-    return np.hstack((np.where(inside, a, np.nan).reshape(m, -1), near.reshape(m, -1)))
+    return np.hstack((np.where(inside, a, np.nan).reshape(m, 2 * len(origins)), near.reshape(m, len(origins))))
 
 
 def _quadratic_tangents(points, kink, facets, origin, size):

@@ -60,3 +60,15 @@ def test_gamma_c_errors_of_a_p1_trace_on_triangles():
         return np.array([found["L2_gc"], found["pos_gc"]])
     one, fine, finer = errors(0), errors(2), errors(3)
     assert np.all(np.abs(fine / finer - 1) < 1e-14) and np.all(np.abs(one / finer - 1) < 1e-13)
+
+
+def test_no_facets():
+    """A rank without Γ_C facets (2 ranks, the contact face on the other): empty integrals, whatever the kinks."""
+    def kink(facets, lam, x):
+        return np.sin(x[..., 0]) - 0.5
+
+    def integrand(facets, lam, x):
+        return np.maximum(kink(facets, lam, x), 0) ** 3
+    trace = measure.on_facets(np.zeros((0, 3)))
+    found = kinked.on_facets(np.zeros((0, 3, 3)), integrand, [trace, (kink, False)])
+    assert found.shape == (0,)
