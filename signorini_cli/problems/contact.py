@@ -217,8 +217,9 @@ def _on_segments(u_fn, starts, ends, t):
 
 def _zero(u_fn, starts, ends, lo, hi, u_lo, u_hi):
     """The zero of u in [lo, hi] of each segment, where u_lo > 0 >= u_hi or the reverse (kinked.illinois)."""
-    return kinked.illinois(lambda t: np.broadcast_to(u_fn(starts + t[:, None] * (ends - starts)), t.shape),
-                           lo, hi, u_lo, u_hi, ZERO_ITERATIONS)
+    def u_at(t, which):
+        return np.broadcast_to(u_fn(starts[which] + t[:, None] * (ends - starts)[which]), t.shape)
+    return kinked.illinois(u_at, lo, hi, u_lo, u_hi, ZERO_ITERATIONS)
 
 
 def _pieces(u_fn, alpha, starts, ends, weights_fn, origin, end, jacobi):

@@ -7,7 +7,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..config import names
-from . import contact, elasticity
+from . import contact, elasticity, kinked
 
 COLUMNS = names.HERTZ[1:]  # after contact_force: a_h, a, its error, p_h, p0, its error, F(a_h), its error
 
@@ -34,13 +34,20 @@ def force_of(half_width, radius, material, dim):
     return math.pi * E_star * half_width**2 / (4 * radius) if dim == 2 else 4 * E_star * half_width**3 / (3 * radius)
 
 
-def measured(term, eps, alpha, dim, comm):
-    """(F_h, a_h, centre, n) of the P1 solution on Γ_C from the vertex values w_h = u_h·n − g0 of its facets:
-    F_h = (1/ε)∫[w_h]_+^α in closed form, a_h the largest distance, across the mean normal n, of the contact
-    set's boundary (the zeros of the linear w_h on the facets' edges) from the centre of its bounding box."""
-    w, x = term.values(term.u_h.x.array), term.points[..., :dim]
-    force = comm.allreduce(float(np.sum(term.sizes * contact.moments(w, alpha)[0])) if len(w) else 0.0,
-                           op=MPI.SUM) / eps
+def facet_moments(term, alpha):
+    """(w, m0, m1): the vertex values w_h = u_h·n − g0 of the Γ_C facets (facets, k), and the means over each
+    facet of [w_h]_+^α and of [w_h]_+^α λ_i (contact.moments), which measured and central_pressure share."""
+    w = term.values(term.u_h.x.array)
+    m0, m1, _ = contact.moments(w, alpha) if len(w) else (np.zeros(0), np.zeros(w.shape), None)
+    return w, m0, m1
+
+
+def measured(term, w, m0, eps, dim, comm):
+    """(F_h, a_h, centre, n) of the P1 solution on Γ_C (w, m0 of facet_moments): F_h = (1/ε)∫[w_h]_+^α in
+    closed form, a_h the largest distance, across the mean normal n, of the contact set's boundary (the zeros
+    of the linear w_h on the facets' edges) from the centre of its bounding box."""
+    x = term.points[..., :dim]
+    force = comm.allreduce(float(np.sum(term.sizes * m0)), op=MPI.SUM) / eps
     ends = np.concatenate(comm.allgather(boundary_points(w, x)))
     normals = np.concatenate(comm.allgather(term.normal)).sum(axis=0)
     n = normals / np.linalg.norm(normals)
@@ -50,17 +57,15 @@ def measured(term, eps, alpha, dim, comm):
     return force, float(np.linalg.norm(across(ends - centre, n), axis=1).max()), centre, n
 
 
-def central_pressure(term, eps, alpha, centre, n, a, comm):
-    """p_h = ∫p_h ψ / (c ∫ψ): the contact pressure p_h = (1/ε)[w_h]_+^α averaged with the weight
-    ψ = (1 − (2r/a)²)_+² (its P1 interpolant; r the distance from the contact centre across n) over the central
-    half of Hertz's contact zone, over c, the same mean of Hertz's profile (1 − r²/a²)^(1/2): p_h = p0 for
-    Hertz's pressure. An average, not the largest nodal value: at small ε the vertex pressures swing from vertex
-    to vertex on tetrahedra (0.02 to 0.15 against Hertz's 0.073 in the 3-D Hertz study) and their maximum
-    does not converge."""
-    w = term.values(term.u_h.x.array)
-    k = w.shape[1]
-    moments = contact.moments(w, alpha)[1] if len(w) else np.zeros(w.shape)
-    force, _ = elasticity.on_vertices(term, term.sizes[:, None] * moments / eps)  # λ_i = ∫p_h φ_i
+def central_pressure(term, m1, eps, centre, n, a, comm):
+    """p_h = ∫p_h ψ / (c ∫ψ): the contact pressure p_h = (1/ε)[w_h]_+^α (m1 of facet_moments) averaged with the
+    weight ψ = (1 − (2r/a)²)_+² (its P1 interpolant; r the distance from the contact centre across n) over the
+    central half of Hertz's contact zone, over c, the same mean of Hertz's profile (1 − r²/a²)^(1/2): p_h = p0
+    for Hertz's pressure. An average, not the largest nodal value: at small ε the vertex pressures swing from
+    vertex to vertex on tetrahedra (0.02 to 0.15 against Hertz's 0.073 in the 3-D Hertz study) and their
+    maximum does not converge."""
+    k = m1.shape[1]
+    force, _ = elasticity.on_vertices(term, term.sizes[:, None] * m1 / eps)  # λ_i = ∫p_h φ_i
     area, _ = elasticity.on_vertices(term, np.repeat(term.sizes[:, None] / k, k, axis=1))  # ∫φ_i
     space = force.function_space
     owned = space.dofmap.index_map.size_local
@@ -87,23 +92,19 @@ def across(x, n):
 def boundary_points(w, x):
     """The points where the facets' linear w (facets, k) changes sign along their edges, and their vertices
     with w > 0 (x: the vertices' points, (facets, k, d)): the contact set's extent."""
-    found = [x[w > 0]]
-    for i in range(w.shape[1]):
-        for j in range(i + 1, w.shape[1]):
-            cut = (w[:, i] > 0) != (w[:, j] > 0)
-            t = w[cut, i] / (w[cut, i] - w[cut, j])
-            found.append(x[cut, i] + t[:, None] * (x[cut, j] - x[cut, i]))
-    return np.concatenate(found)
+    pairs = [(i, j) for i in range(w.shape[1]) for j in range(i + 1, w.shape[1])]
+    cuts = [kinked.edge_zero(x, w, i, j)[1] for i, j in pairs]
+    return np.concatenate([x[w > 0]] + [at[np.isfinite(at[:, 0])] for at in cuts])
 
 
 def quantities(cfg, term, eps):
     """The Hertz columns of a level (COLUMNS): a_h and the central pressure p_h against Hertz's a, p0 of the
-    measured force F_h,
-    and F_h against Hertz's force of the measured a_h; relative errors |q_h − q|/q."""
+    measured force F_h, and F_h against Hertz's force of the measured a_h; relative errors |q_h − q|/q."""
     comm, dim, R = term.u_h.function_space.mesh.comm, cfg.dimension, cfg.problem.hertz_radius
-    force, a_h, centre, n = measured(term, eps, cfg.alpha, dim, comm)
+    w, m0, m1 = facet_moments(term, cfg.alpha)
+    force, a_h, centre, n = measured(term, w, m0, eps, dim, comm)
     a, p0 = closed_form(force, R, cfg.material, dim)
-    p_h = central_pressure(term, eps, cfg.alpha, centre, n, a, comm) if centre is not None else 0.0
+    p_h = central_pressure(term, m1, eps, centre, n, a, comm) if centre is not None else 0.0
     f = force_of(a_h, R, cfg.material, dim)
     return dict(zip(COLUMNS, (a_h, a, relative(a_h, a), p_h, p0, relative(p_h, p0), f, relative(force, f))))
 

@@ -49,10 +49,9 @@ COLUMNS = {
     "L2": ("1", "||u - u_h|| in L2(Ω) (manufactured scenes)"),
     "H1": ("1", "|u - u_h| in H1(Ω), the seminorm (manufactured scenes)"),
     "L2_gc": ("1", "||u - u_h|| in L2(Γ_C); each facet cut where u, u_h or u - u_h changes sign, tanh-sinh on each "
-                   "piece (segments: to round-off; triangles: ~1e-14 relative for P1, ~1e-10 for P2)"),
+                   "piece (to round-off, ~1e-14 relative on triangles)"),
     "pos_gc": ("1", "||[u]_+ - [u_h]_+|| in L^{α+1}(Γ_C); each facet cut where u, u_h or u - u_h changes sign, "
-                    "tanh-sinh on each piece (segments: to round-off; triangles: ~1e-14 relative for P1, "
-                    "~1e-10 for P2)"),
+                    "tanh-sinh on each piece (to round-off, ~1e-14 relative on triangles)"),
     "pos_gc_scaled": ("1", "pos_gc to the power (α+1)/2 (paper Corollary 3.2 ii)"),
     "energy_err": ("1", "(H1² + pos_gc^{α+1}/ε)^{1/2}, the energy error of paper Lemma 3.1 (pos_gc's rule)"),
     "diff_L2": ("1", "||u_h - u_{h'}|| in L2(Ω) against the previous level's solution"),

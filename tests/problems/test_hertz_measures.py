@@ -37,7 +37,8 @@ def test_central_pressure_is_hertz_p0_on_hertz_profile(dim, n, tol):
     and of the weight: 4× smaller per halving of h, measured from h = 1/64 and 1/16); the contact set is centred
     on the profile's centre and a_h is within two cells of a (the interpolant's zero lies beyond a)."""
     term = hertz_term(dim, n)
-    force, a_h, centre, normal = hertz.measured(term, EPS, 1.0, dim, MPI.COMM_WORLD)
+    w, m0, m1 = hertz.facet_moments(term, 1.0)
+    force, a_h, centre, normal = hertz.measured(term, w, m0, EPS, dim, MPI.COMM_WORLD)
     assert np.allclose(centre[:dim - 1], CENTRE, atol=1e-12) and abs(a_h - A) < 2 / n
-    p_h = hertz.central_pressure(term, EPS, 1.0, centre, normal, A, MPI.COMM_WORLD)
+    p_h = hertz.central_pressure(term, m1, EPS, centre, normal, A, MPI.COMM_WORLD)
     assert abs(p_h / P0 - 1) < tol
