@@ -60,7 +60,7 @@ BEST_OF = {"square": 2, "square-2-ranks": 2}
 # the figures of earlier rounds' targets (the page's first table); the speed contract is bench_check.TARGETS
 TARGETS = {"floor_ratio": 2.0, "exponent": 1.15, "speedup": 1.6, "kb_per_dof": 1.0, "study_over_floors": 3.0,
            "largest_rank_4": 0.45, "contact_share": 0.10}
-WHOLE_REPEATS = 5  # the whole default run against the tutorial-style scripts: median of 5 runs in turn
+WHOLE_REPEATS = 5  # the medians of whole runs against tutorial-style scripts, and of --resume against fresh runs
 PHASE_COLUMNS = ("t_mesh", "t_forms", "t_transfer", "t_assemble_residual", "t_assemble_jacobian", "t_contact",
                  "t_linear",
                  "t_pc_setup", "t_newton", "t_linear_floor", "floor_ratio", "t_errors", "t_output", "time_s")
@@ -241,12 +241,13 @@ def polish_note(runs):
 
 
 def tutorial():
-    """The whole default run against the tutorial-style scripts (bench_check.WHOLE_RUNS, median of WHOLE_REPEATS
-    runs in turn), the start-up commands and the finest 2-D level's checks, each in fresh processes."""
+    """The whole default run against the tutorial-style scripts (bench_check.WHOLE_RUNS) and --resume against a
+    fresh run (medians of WHOLE_REPEATS runs in turn), the start-up commands and the finest 2-D level's checks,
+    each in fresh processes."""
     out = RUNS / "tutorial"
     out.mkdir(parents=True, exist_ok=True)
     measured = bench_check.short_measures(bench_check.whole_runs(bench_check.WHOLE_RUNS, WHOLE_REPEATS))
-    resume = bench_check.resume_runs()
+    resume = bench_check.resume_runs(WHOLE_REPEATS)
     measured.update(resume_over_fresh=resume["resume"]["wall_s"] / resume["fresh"]["wall_s"])
     measured["raw"].update(resume=resume, dolfinx_mesh_s=dolfinx_mesh_seconds())
     (out / "bench.json").write_text(json.dumps(measured))
