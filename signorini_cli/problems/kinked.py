@@ -119,7 +119,7 @@ def _bracketed_zeros(cuts, kink):
 def illinois(f, lo, hi, f_lo, f_hi, iterations=ZERO_ITERATIONS):
     """The zero of f in each bracket [lo, hi] (B,), where f_lo > 0 >= f_hi or the reverse (f(t, which) -> the
     values at the parameters t of the brackets `which`): regula falsi with the Illinois modification
-    (superlinear; the bracket always holds the zero). A bracket stops when it is a few ulps wide or f is 0."""
+    (superlinear; the bracket always holds the zero). A bracket stops when no float lies inside it or f is 0."""
     lo, hi, f_lo, f_hi = (np.array(v, dtype=float) for v in (lo, hi, f_lo, f_hi))
     which = np.arange(len(lo))
     for _ in range(iterations):
@@ -131,8 +131,8 @@ def illinois(f, lo, hi, f_lo, f_hi, iterations=ZERO_ITERATIONS):
         same = (f_t > 0) == (f_a > 0)
         lo[which], f_lo[which] = np.where(same, t, a), np.where(same, f_t, f_a / 2)
         hi[which], f_hi[which] = np.where(same, b, t), np.where(same, f_b / 2, f_t)
-        width = np.abs(hi[which] - lo[which])
-        which = which[(f_t != 0) & (width > 4 * np.spacing(np.maximum(np.abs(lo[which]), np.abs(hi[which]))))]
+        low, high = np.minimum(lo[which], hi[which]), np.maximum(lo[which], hi[which])
+        which = which[(f_t != 0) & (np.nextafter(low, high) < high)]  # a float strictly inside: not done
         if not len(which):
             break
     return np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
