@@ -1,13 +1,18 @@
-"""Shared fixtures: a config factory for small studies; the solved Problem of a level."""
+"""Shared fixtures: a config factory for small studies; the solved Problem of a level; a contact term's
+assembly beside UFL's."""
 import copy
 import os
 import subprocess
 from contextlib import contextmanager
 
+import numpy as np
 import pytest
 import yaml
 
 from mpi4py import MPI
+
+from dolfinx import fem
+from dolfinx.fem import petsc as fem_petsc
 
 from signorini_cli import config
 from signorini_cli.solve import strategies
@@ -100,3 +105,21 @@ def solved_problem(cfg, monkeypatch, comm=MPI.COMM_SELF):
     monkeypatch.setattr(strategies, "solve", spy)
     refinement_study.solve_level(cfg, 0, cfg.mesh.refinements[0], comm)
     return seen[-1]
+
+
+def assembled_beside_ufl(term, F, J, u_h):
+    """(b, b_ufl, A, A_ufl): a contact term's residual and Jacobian (term.add_residual, add_jacobian) beside UFL's
+    assembly of the forms F, J."""
+    b_ufl = fem_petsc.assemble_vector(fem.form(F))
+    b_ufl.ghostUpdate(addv=2, mode=1)  # ADD, REVERSE
+    b = fem_petsc.create_vector(fem.form(F))
+    with b.localForm() as local:
+        local.set(0.0)
+        term.add_residual(local.array_w)
+    b.ghostUpdate(addv=2, mode=1)
+    A_ufl = fem_petsc.assemble_matrix(fem.form(J))
+    A_ufl.assemble()
+    A = fem_petsc.create_matrix(fem.form(J))
+    term.add_jacobian(A, np.zeros(u_h.x.array.size, dtype=bool))
+    A.assemble()
+    return b, b_ufl, A, A_ufl

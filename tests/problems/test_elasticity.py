@@ -15,7 +15,7 @@ from signorini_cli import config
 from signorini_cli.app import cli
 from signorini_cli.meshing import meshes
 from signorini_cli.problems import contact, elasticity
-from conftest import BASE, merge
+from conftest import BASE, assembled_beside_ufl, merge
 
 EXACT_2D = ["0.1*sin(pi*x)*y", "0.1*cos(2*pi*x)*(1 - y)**2"]
 EXACT_3D = ["0.1*sin(pi*x)*z", "0.1*sin(pi*y)*z", "0.1*cos(2*pi*x)*cos(2*pi*y)*(1 - z)**2"]
@@ -163,23 +163,11 @@ def test_vector_contact_term_equals_ufl_where_polynomial(tmp_path, dim, alpha):
     v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
     w_h = ufl.dot(u_h, n) - (-0.5 + 0.1 * x[0])
     F = w_h ** int(alpha) / eps * ufl.dot(v, n) * domain.ds_c(int(alpha) + 1)
-    b_ufl = fem_petsc.assemble_vector(fem.form(F))
-    b_ufl.ghostUpdate(addv=2, mode=1)  # ADD, REVERSE
-    b = fem_petsc.create_vector(fem.form(F))
-    with b.localForm() as local:
-        local.set(0.0)
-        term.add_residual(local.array_w)
-    b.ghostUpdate(addv=2, mode=1)
+    b, b_ufl, A, A_ufl = assembled_beside_ufl(term, F, ufl.derivative(F, u_h, du), u_h)
     # round-off: sums of a few hundred terms of size <= 1 (1e-13 of the largest entry)
     assert abs(b.norm() - b_ufl.norm()) <= 1e-13 * b_ufl.norm()
     b.axpy(-1.0, b_ufl)
     assert b.norm() <= 1e-13 * b_ufl.norm()
-    J = fem.form(ufl.derivative(F, u_h, du))
-    A_ufl = fem_petsc.assemble_matrix(J)
-    A_ufl.assemble()
-    A = fem_petsc.create_matrix(J)
-    term.add_jacobian(A, np.zeros(u_h.x.array.size, dtype=bool))
-    A.assemble()
     A.axpy(-1.0, A_ufl)
     assert A.norm() <= 1e-13 * A_ufl.norm()
 

@@ -15,7 +15,7 @@ from signorini_cli.app import cli
 from signorini_cli.meshing import meshes
 from signorini_cli.problems import nitsche
 from signorini_cli.studies import refinement
-from conftest import BASE, U_SIGNORINI, merge
+from conftest import BASE, U_SIGNORINI, assembled_beside_ufl, merge
 
 THETAS = (1.0, 0.0, -1.0)
 DIMS = (2, 3, pytest.param(2, marks=pytest.mark.mpi, id="2-mpi"), pytest.param(3, marks=pytest.mark.mpi, id="3-mpi"))
@@ -49,23 +49,6 @@ def ufl_forms(u_h, domain, theta, gamma0):
     return F, ufl.derivative(F, u_h, du)
 
 
-def assembled(term, F, J, u_h):
-    """(b, b_ufl, A, A_ufl): the term's residual and Jacobian beside UFL's."""
-    b_ufl = fem_petsc.assemble_vector(fem.form(F))
-    b_ufl.ghostUpdate(addv=2, mode=1)  # ADD, REVERSE
-    b = fem_petsc.create_vector(fem.form(F))
-    with b.localForm() as local:
-        local.set(0.0)
-        term.add_residual(local.array_w)
-    b.ghostUpdate(addv=2, mode=1)
-    A_ufl = fem_petsc.assemble_matrix(fem.form(J))
-    A_ufl.assemble()
-    A = fem_petsc.create_matrix(fem.form(J))
-    term.add_jacobian(A, np.zeros(u_h.x.array.size, dtype=bool))
-    A.assemble()
-    return b, b_ufl, A, A_ufl
-
-
 @pytest.mark.parametrize("theta", THETAS)
 @pytest.mark.parametrize("dim", DIMS)
 def test_nitsche_term_equals_ufl_without_kink(level, dim, theta):
@@ -77,7 +60,7 @@ def test_nitsche_term_equals_ufl_without_kink(level, dim, theta):
     u_h.x.array[:] += 0.01 * rng.random(u_h.x.array.size)  # |γ∂_n u| <= 0.1: P >= 0.8
     u_h.x.scatter_forward()
     term = nitsche.NitscheTerm(u_h, domain, theta, 0.1)
-    b, b_ufl, A, A_ufl = assembled(term, *ufl_forms(u_h, domain, theta, 0.1), u_h)
+    b, b_ufl, A, A_ufl = assembled_beside_ufl(term, *ufl_forms(u_h, domain, theta, 0.1), u_h)
     # round-off: sums of a few terms of size <= 1/γ ~ 30 (1e-13 of the largest entry)
     b.axpy(-1.0, b_ufl)
     assert b.norm() <= 1e-13 * b_ufl.norm()
