@@ -6,31 +6,19 @@ from mpi4py import MPI
 from signorini_cli.problems import kinked, measure
 
 
-def subdivided(points, values, levels):
-    """The triangles (M 4^levels, 3, 3) of `levels` midpoint subdivisions, with the linear values at their vertices."""
-    for _ in range(levels):
-        p0, p1, p2 = points[:, 0], points[:, 1], points[:, 2]
-        m01, m12, m02 = (p0 + p1) / 2, (p1 + p2) / 2, (p0 + p2) / 2
-        v0, v1, v2 = values.T
-        w01, w12, w02 = (v0 + v1) / 2, (v1 + v2) / 2, (v0 + v2) / 2
-        points = np.concatenate([np.stack(t, 1) for t in ((p0, m01, m02), (m01, p1, m12), (m02, m12, p2),
-                                                            (m01, m12, m02))])
-        values = np.concatenate([np.stack(t, 1) for t in ((v0, w01, w02), (w01, v1, w12), (w02, w12, v2),
-                                                            (w01, w12, w02))])
-    return points, values
-
-
 # the four children of a triangle (midpoint subdivision), their vertices in the parent's barycentric coordinates
 CHILDREN = np.array([[[1, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5]], [[0.5, 0.5, 0], [0, 1, 0], [0, 0.5, 0.5]],
                      [[0.5, 0, 0.5], [0, 0.5, 0.5], [0, 0, 1]], [[0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5]]])
 
 
-def subdivided_p2(points, values, levels):
-    """As subdivided, for a P2 trace: its values (M, 6) at kinked.P2_NODES, restricted to the children."""
+def subdivided(points, values, levels):
+    """The triangles (M 4^levels, 3, 3) of `levels` midpoint subdivisions, with a P1 (values (M, 3) at the
+    vertices) or P2 trace (values (M, 6) at kinked.P2_NODES) restricted to them."""
+    def basis(child):  # the parent's basis at the child's dof points
+        return child if values.shape[1] == 3 else measure.p2_basis(kinked.P2_NODES @ child)
     for _ in range(levels):
         points = np.concatenate([np.einsum("vk,mkx->mvx", child, points) for child in CHILDREN])
-        values = np.concatenate([np.einsum("qj,mj->mq", measure.p2_basis(kinked.P2_NODES @ child), values)
-                                 for child in CHILDREN])
+        values = np.concatenate([np.einsum("qj,mj->mq", basis(child), values) for child in CHILDREN])
     return points, values
 
 
@@ -105,6 +93,6 @@ def test_gamma_c_errors_of_a_p2_trace_on_triangles():
     w_h = w(None, nodes) + 0.01 * np.cos(7 * nodes[..., 0] + 3 * nodes[..., 1])
 
     def errors(levels):
-        found = measure.contact_errors(MPI.COMM_SELF, *subdivided_p2(points, w_h, levels), w, 1.0, 2.0, 0.0)
+        found = measure.contact_errors(MPI.COMM_SELF, *subdivided(points, w_h, levels), w, 1.0, 2.0, 0.0)
         return np.array([found["L2_gc"], found["pos_gc"]])
     assert np.all(np.abs(errors(0) / errors(2) - 1) < 1e-14)
