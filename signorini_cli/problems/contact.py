@@ -217,8 +217,10 @@ def _on_segments(u_fn, starts, ends, t):
 
 def _zero(u_fn, starts, ends, lo, hi, u_lo, u_hi):
     """The zero of u in [lo, hi] of each segment, where u_lo > 0 >= u_hi or the reverse (kinked.illinois)."""
+    along = ends - starts
+
     def u_at(t, which):
-        return np.broadcast_to(u_fn(starts[which] + t[:, None] * (ends - starts)[which]), t.shape)
+        return np.broadcast_to(u_fn(starts[which] + t[:, None] * along[which]), t.shape)
     return kinked.illinois(u_at, lo, hi, u_lo, u_hi, ZERO_ITERATIONS)
 
 

@@ -2,6 +2,8 @@
 is cut where a kink function changes sign (closed form for polynomials along the cut, else a bracketed zero),
 and each smooth piece is integrated by a double-exponential (tanh-sinh) rule, whose nodes crowd towards the
 piece's ends: an end where the integrand is only C^p (|t − t0|^p) costs it no accuracy."""
+from typing import NamedTuple
+
 import numpy as np
 
 # tanh-sinh: t = (1 + tanh(π/2 sinh s))/2, s in [-RANGE, RANGE] by STEP; at s = ±RANGE the weight is 1e-17
@@ -9,11 +11,23 @@ import numpy as np
 # STEP to 1/16 changes the integrals of tests/problems/test_kinked.py by less than 1e-15 relative)
 STEP = 1 / 8
 RANGE = 3.15
-# sub-intervals per cut searched for sign changes of a kink function that is no polynomial: u − u_h of a P2 u_h
-# has pairs of zeros closer than 1/8 of a cut (8 left pos_gc 4e-13 off on tests/problems/test_kinked.py's P2 face)
-SAMPLES = 32
 CHUNK = 2048  # pieces integrated at once (their nodes' points and values: a few MB)
 ZERO_ITERATIONS = 60  # Illinois steps locating such a zero in a sub-interval where it changes sign
+
+
+class Search(NamedTuple):
+    """How the zeros of a kink function that is no polynomial are found: its signs at `samples` sub-intervals
+    of each cut, its zero curve's tangents to the lines on quadratic interpolants over triangles of size
+    2/seeds covering the facet (refined around each one found)."""
+    samples: int
+    seeds: int
+
+
+# by the degree of the discrete trace in u − u_h: that of a P2 trace has pairs of zeros closer than 1/8 of a
+# cut and curves with several branches per facet (8 and 4 left pos_gc 4e-13 off on test_kinked.py's P2
+# face); for a P1 trace 16 and 4 give the 3-D cube study's pos_gc of 32 and 8 to 6e-16 (N = 8, 16, 32) at
+# half the cost, and that of 128 and 16 (with STEP / 4) to the last digit (N = 4, 8, 12)
+SEARCH = {1: Search(16, 4), 2: Search(32, 8)}
 
 
 def tanh_sinh():
@@ -45,10 +59,10 @@ class Cuts:
 
 def integrate(cuts, integrand, kinks):
     """∫_0^1 integrand dt along each cut, (M, ...): integrand(facets, lam, x) -> (P, q, ...); the cut
-    split at the zeros of every kink function k(facets, lam, x) -> (P, q), given as (k, polynomial): a
-    polynomial of degree <= 2 along the cut has its zeros in closed form, any other is bracketed on
-    SAMPLES sub-intervals (two zeros closer than one sub-interval may go unseen: their integrand is as
-    small as the function between them)."""
+    split at the zeros of every kink function k(facets, lam, x) -> (P, q), given as (k, search): a
+    polynomial of degree <= 2 along the cut (search None) has its zeros in closed form, any other is
+    bracketed on search.samples sub-intervals (two zeros closer than one sub-interval may go unseen: their
+    integrand is as small as the function between them)."""
     rows, lo, width = _pieces(_breaks([cuts], kinks))
     total = None
     for start in range(0, max(len(rows), 1), CHUNK):  # in chunks: the temporaries stay in cache
@@ -68,8 +82,8 @@ def _breaks(cuts_list, kinks):
     m = len(cuts_list[0].facet)
     breaks = [np.zeros((m, 1)), np.ones((m, 1))]
     for cuts in cuts_list:
-        for kink, polynomial in kinks:
-            breaks.append(_quadratic_zeros(cuts, kink) if polynomial else _bracketed_zeros(cuts, kink))
+        for kink, search in kinks:
+            breaks.append(_zeros(cuts, kink, search))
     return np.sort(np.concatenate(breaks, axis=1), axis=1)
 
 
@@ -81,6 +95,11 @@ def _pieces(breaks):
     rows = np.broadcast_to(np.arange(len(breaks))[:, None], lo.shape)[piece]
     lo, hi = lo[piece], hi[piece]
     return rows, lo, hi - lo
+
+
+def _zeros(cuts, kink, search):
+    """The kink's zeros along each cut (M, Z), nan for none: in closed form for a polynomial (search None)."""
+    return _quadratic_zeros(cuts, kink) if search is None else _bracketed_zeros(cuts, kink, search.samples)
 
 
 def _quadratic_zeros(cuts, kink):
@@ -99,11 +118,11 @@ def _roots(p):
     return np.where((roots > 0) & (roots < 1), roots, np.nan)
 
 
-def _bracketed_zeros(cuts, kink):
-    """The zeros of kink along each cut, one per sub-interval of SAMPLES where it changes sign: (M, SAMPLES)."""
+def _bracketed_zeros(cuts, kink, samples):
+    """The zeros of kink along each cut, one per sub-interval of `samples` where it changes sign: (M, samples)."""
     m = len(cuts.facet)
-    grid = np.linspace(0.0, 1.0, SAMPLES + 1)
-    k = np.empty((m, SAMPLES + 1))
+    grid = np.linspace(0.0, 1.0, samples + 1)
+    k = np.empty((m, samples + 1))
     for start in range(0, m, CHUNK):  # in chunks: the cuts' points stay in cache
         rows = np.arange(start, min(start + CHUNK, m))
         k[rows] = kink(*cuts.at(rows, np.broadcast_to(grid, (len(rows), len(grid)))))
@@ -138,7 +157,6 @@ def illinois(f, lo, hi, f_lo, f_hi, iterations=ZERO_ITERATIONS):
     return np.where(np.abs(f_lo) <= np.abs(f_hi), lo, hi)
 
 
-SEEDS = 8  # a kink that is no polynomial is interpolated over triangles of size 2/SEEDS to find its tangents
 TANGENT_SIZES = (1 / 4, 1 / 16, 1 / 64, 1 / 256, 1 / 1024)  # then around each one found, in facet units
 NEAR = 0.5  # a complex tangent point this near the real a axis (facet units) makes a break at its real part
 LINEAR_B = 1e-12  # |c5| below this share of a kink's values: linear along the lines (round-off of a P1 trace)
@@ -157,21 +175,20 @@ def triangle_coefficients(values):
     return v0, c1, c2, c3, c4, c5
 
 
-def _tangents(points, kink, polynomial):
+def _tangents(points, kink, search):
     """The positions a (M, T) where a kink's zero curve is tangent to the lines of fixed a (the lines of
     on_facets, along e2 = P2 − P0), nan if none: there ∂w/∂b = 0 and w = 0, and the integral along the line
     has a square-root kink in a. Found on the kink's quadratic interpolant over the facet, exact for a
-    quadratic kink; any other is interpolated over triangles of size 2/SEEDS covering the facet (its zero set
+    quadratic kink; any other is interpolated over triangles of size 2/search.seeds covering the facet (its zero set
     may have more branches than one conic's), and each point found again on the interpolants over triangles
     TANGENT_SIZES around it (the interpolant's error falls as the size cubed). With them, the real parts of
     near complex tangent points (_quadratic_tangents). A kink linear in b to round-off (every P1 trace) has none."""
     m = len(points)
-    origins, size = (np.zeros((1, 2)), 1.0) if polynomial else \
-        (np.array([(i, j) for i in range(SEEDS - 1) for j in range(SEEDS - 1 - i)]) / SEEDS, 2 / SEEDS)
+    origins, size = (np.zeros((1, 2)), 1.0) if search is None else _seeds(search.seeds)
     facets = np.repeat(np.arange(m), len(origins))
     a, b, near = _quadratic_tangents(points, kink, facets, np.tile(origins, (m, 1)).T, size)
     facets, a, b = np.repeat(facets, 2), a.ravel(), b.ravel()
-    for size in () if polynomial else TANGENT_SIZES:
+    for size in () if search is None else TANGENT_SIZES:
         found = np.flatnonzero(np.isfinite(a) & np.isfinite(b))
         a_near, b_near, _ = _quadratic_tangents(points, kink, facets[found],
                                                 np.stack((a[found], b[found])) - size / 3, size)
@@ -182,6 +199,11 @@ def _tangents(points, kink, polynomial):
         b[found[moved]] = np.take_along_axis(b_near, closest, axis=1)[moved, 0]
     inside = (a > 0) & (a < 1) & (b >= 0) & (b <= 1 - a)
     return np.hstack((np.where(inside, a, np.nan).reshape(m, 2 * len(origins)), near.reshape(m, len(origins))))
+
+
+def _seeds(n):
+    """(origins (T, 2), size): the triangles of size 2/n at (i, j)/n, i + j <= n - 2, covering the facet."""
+    return np.array([(i, j) for i in range(n - 1) for j in range(n - 1 - i)]) / n, 2 / n
 
 
 def _quadratic_tangents(points, kink, facets, origin, size):
@@ -213,8 +235,8 @@ def _crossings(points, kinks):
     integral along a line kinks in a. The zero line runs between the two edges where the kink changes sign."""
     m = len(points)
     found = [np.full((m, 0), np.nan)]
-    for i, (line, polynomial) in enumerate(kinks):
-        if not polynomial:
+    for i, (line, search) in enumerate(kinks):
+        if search is not None:
             continue
         values = _at_p2_nodes(points, line)
         coefficients = np.stack(triangle_coefficients(values)[3:], axis=1)
@@ -229,8 +251,8 @@ def _crossings(points, kinks):
         x = np.stack([x for _, x in ends], axis=1)[rows]
         pick = np.arange(len(rows))
         cuts = Cuts(rows, lam[pick, first], lam[pick, second], x[pick, first], x[pick, second])
-        for other, other_polynomial in kinks[:i] + kinks[i + 1:]:
-            t = _quadratic_zeros(cuts, other) if other_polynomial else _bracketed_zeros(cuts, other)
+        for other, other_search in kinks[:i] + kinks[i + 1:]:
+            t = _zeros(cuts, other, other_search)
             a = np.full((m, t.shape[1]), np.nan)
             a[rows] = cuts.lam0[:, None, 1] + t * cuts.dlam[:, None, 1]
             found.append(a)
@@ -271,8 +293,8 @@ def on_facets(points, integrand, kinks):
         return found * lengths.reshape((m,) + (1,) * (found.ndim - 1))
     edges = [Cuts(facet, eye[:, 0], eye[:, 1], points[:, 0], points[:, 1]),
              Cuts(facet, eye[:, 2], eye[:, 1], points[:, 2], points[:, 1])]
-    breaks = [_breaks(edges, kinks), _crossings(points, kinks)] + [_tangents(points, kink, polynomial)
-                                                                   for kink, polynomial in kinks]
+    breaks = [_breaks(edges, kinks), _crossings(points, kinks)] + [_tangents(points, kink, search)
+                                                                   for kink, search in kinks]
     rows, lo, width = _pieces(np.sort(np.concatenate(breaks, axis=1), axis=1))
     a = lo[:, None] + width[:, None] * NODES  # (P, q): the lines' positions
     line_facet, a = np.repeat(rows, a.shape[1]), a.ravel()

@@ -74,8 +74,10 @@ def contact_errors(comm, points, w_h, w, eps, alpha, h1):
     seminorm h1: L2_gc = ||w - w_h||_{L2(Γ_C)}, pos_gc = ||[w]_+ - [w_h]_+||_{L^{alpha+1}(Γ_C)}, its scaled
     form pos_gc^{(alpha+1)/2} (Cor. 3.2 ii) and energy_err = (h1^2 + pos_gc^{alpha+1}/eps)^{1/2} (Lemma 3.1).
     w_h and w are facet dof values (facets, k) of a discrete function or an expression w(facets, x); every
-    facet is cut at the zeros of w_h, w and w - w_h (kinked.on_facets: the integrands are smooth between)."""
-    u_h, u = on_facets(w_h), on_facets(w)
+    facet is cut at the zeros of w_h, w and w - w_h (kinked.on_facets: the integrands are smooth between),
+    those of an expression searched as finely as the degree of w_h asks (kinked.SEARCH)."""
+    search = kinked.SEARCH[1 if np.shape(w_h)[1] == points.shape[1] else 2]
+    u_h, u = on_facets(w_h, search), on_facets(w, search)
 
     def integrand(facets, lam, x):
         a, b = u[0](facets, lam, x), u_h[0](facets, lam, x)
@@ -83,7 +85,7 @@ def contact_errors(comm, points, w_h, w, eps, alpha, h1):
 
     def difference(facets, lam, x):
         return u[0](facets, lam, x) - u_h[0](facets, lam, x)
-    kinks = [u_h, u, (difference, u_h[1] and u[1])]
+    kinks = [u_h, u, (difference, None if u_h[1] is None and u[1] is None else search)]
     local = kinked.on_facets(points, integrand, kinks).sum(axis=0) if len(points) else np.zeros(2)
     squared, pos_power = comm.allreduce(local, op=MPI.SUM)
     pos_gc = pos_power ** (1 / (alpha + 1))
@@ -91,18 +93,19 @@ def contact_errors(comm, points, w_h, w, eps, alpha, h1):
             "energy_err": np.sqrt(h1**2 + pos_power / eps)}
 
 
-def on_facets(w):
-    """(w(facets, lam, x), polynomial) of facet dof values (a P1 trace, or P2: vertices, then the midpoints of
-    the edges, as contact_facet_dofs orders them) or of an expression w(facets, x)."""
+def on_facets(w, search=None):
+    """(w(facets, lam, x), search) as kinked.on_facets takes a kink: of facet dof values (a P1 trace, or P2:
+    vertices, then the midpoints of the edges, as contact_facet_dofs orders them; search None: a polynomial)
+    or of an expression w(facets, x), whose zeros are found by `search`."""
     if callable(w):
-        return (lambda facets, lam, x: np.broadcast_to(w(facets, x), x.shape[:-1])), False
+        return (lambda facets, lam, x: np.broadcast_to(w(facets, x), x.shape[:-1])), search
     values = np.asarray(w)
 
     def trace(facets, lam, x):
         if lam.shape[-1] == values.shape[1]:  # P1: the barycentric coordinates are the basis
             return np.einsum("pqk,pk->pq", lam, values[facets])
         return np.einsum("pqk,pk->pq", p2_basis(lam), values[facets])
-    return trace, True
+    return trace, None
 
 
 def p2_basis(lam):

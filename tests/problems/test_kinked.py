@@ -39,7 +39,7 @@ def w(facets, x):
 
 def test_curved_kink_tangent_to_the_lines():
     """[k]_+³ with k = sin 3x + cos 2.5y − 1.2 on one large triangle, whose zero curve is tangent to the rule's
-    lines inside it: measured 1.6e-15 relative to the 4³ and 4⁴ subdivisions (which agree to 1e-15); 1.1e-7
+    lines inside it: measured 1.2e-15 relative to the 4³ and 4⁴ subdivisions (which agree to 1e-15); 1.1e-7
     before such tangent points of a non-polynomial kink were breaks."""
     points = np.zeros((1, 3, 3))
     points[0, :, :2] = [[0.96165719, 0.72478994], [0.54122686, 0.2768912], [0.16065201, 0.96992541]]
@@ -49,8 +49,9 @@ def test_curved_kink_tangent_to_the_lines():
 
     def integrand(facets, lam, x):
         return np.maximum(kink(facets, lam, x), 0) ** 3
-    one = kinked.on_facets(points, integrand, [(kink, False)]).sum()
-    fine, finer = (kinked.on_facets(subdivided(points, np.zeros((1, 3)), n)[0], integrand, [(kink, False)]).sum()
+    kinks = [(kink, kinked.SEARCH[1])]  # searched as the zeros of u − u_h of a P1 trace are
+    one = kinked.on_facets(points, integrand, kinks).sum()
+    fine, finer = (kinked.on_facets(subdivided(points, np.zeros((1, 3)), n)[0], integrand, kinks).sum()
                    for n in (3, 4))
     assert abs(fine / finer - 1) < 1e-14 and abs(one / finer - 1) < 1e-13
 
@@ -59,7 +60,7 @@ def test_gamma_c_errors_of_a_p1_trace_on_triangles():
     """L2_gc and pos_gc (α = 2) of a P1 w_h against w = sin 2πx sin πy on the face z = 0 of the unit cube cut
     into 8 × 8 × 2 triangles (the cube study's N = 8 face; w_h: w at the vertices moved by 0.01 cos(7x + 3y)):
     the zero curves of w and w − w_h are tangent to the lines and cross w_h's zero line inside facets. Measured
-    against the 4² and 4³ subdivisions (which agree to 1e-15): 2e-16 and 3e-16 relative; pos_gc 7.1e-11 before
+    against the 4² and 4³ subdivisions (which agree to 1e-15): 2e-16 and 7e-16 relative; pos_gc 7.1e-11 before
     those points were breaks."""
     points = face_triangles(8)
     w_h = w(None, points) + 0.01 * np.cos(7 * points[..., 0] + 3 * points[..., 1])
@@ -79,7 +80,7 @@ def test_no_facets():
     def integrand(facets, lam, x):
         return np.maximum(kink(facets, lam, x), 0) ** 3
     trace = measure.on_facets(np.zeros((0, 3)))
-    found = kinked.on_facets(np.zeros((0, 3, 3)), integrand, [trace, (kink, False)])
+    found = kinked.on_facets(np.zeros((0, 3, 3)), integrand, [trace, (kink, kinked.SEARCH[1])])
     assert found.shape == (0,)
 
 
