@@ -47,14 +47,16 @@ class Cuts:
     (M, 3), each cut belonging to the facet `facet` (M,)."""
 
     def __init__(self, facet, lam0, lam1, x0, x1):
-        self.facet, self.lam0, self.x0 = facet, lam0, x0
-        self.dlam, self.dx = lam1 - lam0, x1 - x0  # once: a zero search asks for a few rows many times
+        self.facet, self.lam0, self.dlam = facet, lam0, lam1 - lam0
+        self.k = lam0.shape[1]
+        # lam and x side by side: one array op for both, the most frequent one of the rule
+        self.start, self.step = np.hstack((lam0, x0)), np.hstack((lam1 - lam0, x1 - x0))
 
     def at(self, rows, t):
         """(facets, lam, x) at the parameters t (P, q) of the cuts `rows` (P,)."""
-        lam = self.lam0[rows, None] + t[..., None] * self.dlam[rows, None]
-        x = self.x0[rows, None] + t[..., None] * self.dx[rows, None]
-        return self.facet[rows], lam, x
+        both = t[..., None] * self.step[rows, None]
+        both += self.start[rows, None]
+        return self.facet[rows], both[..., :self.k], both[..., self.k:]
 
 
 def integrate(cuts, integrand, kinks):
