@@ -47,8 +47,7 @@ class Cuts:
     (M, 3), each cut belonging to the facet `facet` (M,)."""
 
     def __init__(self, facet, lam0, lam1, x0, x1):
-        self.facet, self.lam0, self.dlam = facet, lam0, lam1 - lam0
-        self.k = lam0.shape[1]
+        self.facet, self.k = facet, lam0.shape[1]
         # lam and x side by side: one array op for both, the most frequent one of the rule
         self.start, self.step = np.hstack((lam0, x0)), np.hstack((lam1 - lam0, x1 - x0))
 
@@ -256,7 +255,7 @@ def _crossings(points, kinks):
         for other, other_search in kinks[:i] + kinks[i + 1:]:
             t = _zeros(cuts, other, other_search)
             a = np.full((m, t.shape[1]), np.nan)
-            a[rows] = cuts.lam0[:, None, 1] + t * cuts.dlam[:, None, 1]
+            a[rows] = cuts.start[:, None, 1] + t * cuts.step[:, None, 1]  # lam_1 along the cut
             found.append(a)
     return np.concatenate(found, axis=1)
 

@@ -4,6 +4,7 @@ errors) with the method that enforces its contact condition; a new PDE or method
 import contextlib
 import dataclasses
 
+from ..config import MESH_KINDS
 from ..meshing import meshes
 from . import compliance, elastic_vi, elasticity, element, nitsche, penalty, posed, vi
 
@@ -74,9 +75,9 @@ _passed = None  # within checked_once(): (mesh family, data) -> the data's Profi
 @contextlib.contextmanager
 def checked_once():
     """Within (a study, a map: re-entrant): a problem's data are checked at the cells' quadrature points, their
-    load for settling and their Profile taken, once per mesh family, on its coarsest mesh (what a check at
-    interior points can find there, it finds on any level); at the vertices and on Γ_C on every level (where
-    a finer level's new vertices may meet a singularity)."""
+    load for settling and their Profile taken, once per mesh family, on its coarsest mesh (a built-in grid's
+    at most CHECK_N: what a check at interior points can find there, it finds on any level); at the vertices
+    and on Γ_C on every level (where a finer level's new vertices may meet a singularity)."""
     global _passed
     if _passed is not None:
         yield
@@ -95,13 +96,26 @@ def check_posed(cfg, domain, u_exact, eps_value):
     key = (_family(cfg), _data(cfg.problem, eps_value))
     coarsest = None
     if _passed is None or key not in _passed:  # the cells' checks: on the family's coarsest mesh
-        first = cfg.mesh.levels[0]
+        first = _checked_level(cfg.mesh)
         coarsest = domain if domain.n == first else meshes.build(cfg.mesh, cfg.contact, first, domain.mesh.comm)
     found = POSED[cfg.problem.pde](cfg, domain, u_exact, eps_value, coarsest=coarsest)
     if _passed is not None:
         found = _passed.setdefault(key, found)
     low = (compliance.QUADRATURE_DEGREE, element.error_degree(cfg.element.degree, domain.h, domain.mesh.topology.dim))
     return low if found is None else found.degrees(domain.h, *low)
+
+
+# The cells' checks and the Profile evaluate the data at every Gauss rule's points of every cell (~3300 per
+# tetrahedron, ~260 per triangle): their cost grows with the mesh (3-D: 1.5 s at N = 8, 11 s at 16, 100 s at
+# 32). A built-in grid of any N belongs to the family (the same domain and Γ_C), so they run on the coarsest
+# level but at most CHECK_N[d]; a Profile taken there scales to every level as it would from the coarsest.
+CHECK_N = {2: 128, 3: 8}
+
+
+def _checked_level(mesh_cfg):
+    """The family member the cells' checks run on: the coarsest level, on a built-in grid at most CHECK_N."""
+    first = mesh_cfg.levels[0]
+    return min(first, CHECK_N[MESH_KINDS[mesh_cfg.kind]]) if mesh_cfg.kind in MESH_KINDS else first
 
 
 def _family(cfg):

@@ -104,6 +104,25 @@ def test_checked_once_per_mesh_family_and_data(make_config, monkeypatch):
                 check_on(bad, domain)
 
 
+@pytest.mark.fast
+def test_cells_checked_on_a_coarse_member_of_a_built_in_family(make_config, monkeypatch):
+    """The cells' checks and the Profile run on a built-in family's coarsest level, at most N = CHECK_N (here
+    4 in 2-D): a study from N = 8 takes them on N = 4, whose h the Profile scales from; one from N = 2 on N = 2."""
+    from signorini_cli.problems import registry
+    monkeypatch.setitem(registry.CHECK_N, 2, 4)
+    checked = []
+    monkeypatch.setitem(registry.POSED, "poisson", lambda cfg, domain, *rest, coarsest: checked.append(
+        coarsest.n) or posed.check(cfg, domain, *rest, coarsest=coarsest))
+    for levels, expect in (([8, 16], 4), ([2, 4], 2)):
+        cfg = make_config(mesh={"refinements": levels})
+        domain = meshes.build(cfg.mesh, cfg.contact, levels[0], MPI.COMM_SELF)
+        eps_value = cfg.epsilon(domain.h)
+        with registry.checked_once():
+            registry.check_posed(cfg, domain, compliance.exact_solution(
+                cfg, domain.mesh, fem.Constant(domain.mesh, eps_value)), eps_value)
+        assert checked[-1] == expect
+
+
 @pytest.mark.parametrize("changes, message", [
     pytest.param({"problem": {"pde": "elasticity", "exact": ["sqrt(x-0.5)", "0"]}, "material": {"E": 1.0, "nu": 0.3}},
                  r"problem.exact: sqrt\(x-0.5\) is nan at \(", id="elastic-nan"),
